@@ -1,0 +1,15 @@
+"""albedo_model: the morphable albedo model and how it forms an image.
+
+PCA parts, the morphable model, scene parameters, file formats (``io``), the
+Embree ray caster and the JAX shading. This is the lowest package: it imports
+nothing from ``pipeline``, ``proposals`` or ``mcmcfit``.
+"""
+
+from albedo_model.errors import AlbedoModelError, FormatError, InputError
+from albedo_model.model import ModelCoefficients, MorphableModel, vertex_normals
+from albedo_model.pca import PCAPart, pca_from_data
+
+__all__ = [
+    "AlbedoModelError", "FormatError", "InputError", "ModelCoefficients", "MorphableModel",
+    "PCAPart", "pca_from_data", "vertex_normals",
+]

@@ -1,0 +1,1 @@
+"""Input/output of models, parameters, landmarks and meshes (one module per format)."""

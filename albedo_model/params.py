@@ -1,0 +1,208 @@
+"""Scene (render) parameters, as immutable NamedTuple pytrees, and parameter blocks.
+
+Conventions are scalismo-faces' (see ``reference-sampler.md`` §1): pose maps the
+model frame to the world (``p_w = t + Rz(roll) Ry(yaw) Rx(pitch) (s p)``), the
+camera looks down -z, the principal point is in NDC units, SH coefficients are
+in scalismo's internal order (1, y, z, x, xy, yz, 3z^2-1, xz, x^2-y^2) and form
+a radiance environment map (Lambert factors are applied when shading).
+
+This module imports nothing from the project but :mod:`albedo_model.errors`.
+"""
+
+from __future__ import annotations
+
+import enum
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "Block", "Pose", "View", "Camera", "SHLight", "DirectionalLight", "ColorTransform",
+    "ImageSize", "MoMoCoefficients", "RenderParameter", "SH_N0", "default_square",
+    "fit_to_image_size",
+]
+
+SH_N0 = 0.5 * np.sqrt(1.0 / np.pi)
+SH_N1 = 0.5 * np.sqrt(3.0 / np.pi)
+
+
+class Block(enum.Flag):
+    """Parameter blocks; a proposal declares which ones it changes."""
+
+    NONE = 0
+    SHAPE = enum.auto()
+    EXPRESSION = enum.auto()
+    POSE = enum.auto()
+    CAMERA = enum.auto()
+    ALBEDO = enum.auto()
+    LIGHT = enum.auto()
+    COLOR = enum.auto()
+    SPECULAR_EXPONENT = enum.auto()
+
+    GEOMETRY = SHAPE | EXPRESSION
+    RAYS = POSE | CAMERA
+    ALL = SHAPE | EXPRESSION | POSE | CAMERA | ALBEDO | LIGHT | COLOR | SPECULAR_EXPONENT
+
+
+def _vec(x, n: int) -> tuple[float, ...]:
+    t = tuple(float(v) for v in np.asarray(x, np.float64).reshape(-1))
+    if len(t) != n:
+        raise ValueError(f"expected {n} values, got {len(t)}")
+    return t
+
+
+class Pose(NamedTuple):
+    """Model-to-world transform: scaling, translation (mm) and Euler angles (rad)."""
+
+    scaling: float = 1.0
+    translation: tuple[float, float, float] = (0.0, 0.0, -1000.0)
+    roll: float = 0.0
+    yaw: float = 0.0
+    pitch: float = 0.0
+
+
+class View(NamedTuple):
+    """The camera's pose in the world (identity in all fits)."""
+
+    translation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    roll: float = 0.0
+    yaw: float = 0.0
+    pitch: float = 0.0
+
+
+class Camera(NamedTuple):
+    """Pinhole camera. ``principal_point`` is in NDC units (not pixels)."""
+
+    focal_length: float = 7.5
+    sensor_size: tuple[float, float] = (2.0, 2.0)
+    near: float = 10.0
+    far: float = 1e6
+    principal_point: tuple[float, float] = (0.0, 0.0)
+    orthographic: bool = False
+
+
+class SHLight(NamedTuple):
+    """Spherical-harmonics environment map, (K, 3) in scalismo's internal order."""
+
+    coefficients: np.ndarray
+
+    @classmethod
+    def empty(cls) -> SHLight:
+        return cls(np.zeros((0, 3)))
+
+    @classmethod
+    def ambient_white(cls) -> SHLight:
+        """L0 = 1/(pi N0): with the Lambert factor pi the shading equals the albedo."""
+        c = np.zeros((9, 3))
+        c[0] = 1.0 / (np.pi * SH_N0)
+        return cls(c)
+
+    @classmethod
+    def frontal(cls, ambient: float = 0.8, diffuse: float = 0.2) -> SHLight:
+        """scalismo's ``SH.frontal``: shading ``ambient + diffuse * n_z`` (bands 0-1).
+
+        L0 = ambient / (pi N0) and L_z = diffuse / (2 pi / 3 N1), so that with the
+        Lambert factors the shading of a normal n is exactly ``ambient + diffuse n_z``
+        (L0 = 0.9027, L2 = 0.19544 for the defaults, as in AlbedoMM's lminit).
+        """
+        c = np.zeros((9, 3))
+        c[0] = ambient / (np.pi * SH_N0)
+        c[2] = diffuse / (2.0 * np.pi / 3.0 * SH_N1)
+        return cls(c)
+
+    @property
+    def bands(self) -> int:
+        return int(np.sqrt(self.coefficients.shape[0]))
+
+
+class DirectionalLight(NamedTuple):
+    """Directional light (Lambert + Blinn-Phong), towards ``direction`` (world frame)."""
+
+    ambient: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    diffuse: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    direction: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    specular: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    shininess: float = 10.0
+
+    @property
+    def enabled(self) -> bool:
+        """True when the light contributes anything."""
+        return any(v != 0 for v in (*self.ambient, *self.diffuse, *self.specular))
+
+
+class ColorTransform(NamedTuple):
+    """``c' = gain * (contrast c + (1 - contrast) Y(c)) + offset``, Y = .3r + .59g + .11b."""
+
+    gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    contrast: float = 1.0
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def is_identity(self) -> bool:
+        return self.gain == (1.0, 1.0, 1.0) and self.contrast == 1.0 and self.offset == (0.0, 0.0, 0.0)
+
+
+class ImageSize(NamedTuple):
+    width: int
+    height: int
+
+
+class MoMoCoefficients(NamedTuple):
+    """Model coefficients as stored in a ``.rps`` file (``color`` = shared albedo)."""
+
+    shape: np.ndarray
+    color: np.ndarray
+    expression: np.ndarray
+    model_uri: str = ""
+
+    @classmethod
+    def zeros(cls, shape: int = 0, color: int = 0, expression: int = 0, model_uri: str = ""):
+        return cls(np.zeros(shape), np.zeros(color), np.zeros(expression), model_uri)
+
+
+class RenderParameter(NamedTuple):
+    """Everything a ``.rps`` file holds, plus the AlbedoMM specular exponent.
+
+    ``specular_exponent`` is written to ``.rps`` as the extra top-level key
+    ``"specularExponent"`` (scalismo readers ignore unknown keys).
+    """
+
+    pose: Pose
+    view: View
+    camera: Camera
+    environment_map: SHLight
+    directional_light: DirectionalLight
+    momo: MoMoCoefficients
+    image_size: ImageSize
+    color_transform: ColorTransform
+    specular_exponent: float = 20.0
+
+
+def default_square() -> RenderParameter:
+    """scalismo's ``RenderParameter.defaultSquare``: 512 x 512, face 1 m away, frontal SH."""
+    return RenderParameter(
+        pose=Pose(),
+        view=View(),
+        camera=Camera(),
+        environment_map=SHLight.frontal(),
+        directional_light=DirectionalLight(),
+        momo=MoMoCoefficients.zeros(),
+        image_size=ImageSize(512, 512),
+        color_transform=ColorTransform(),
+    )
+
+
+def fit_to_image_size(params: RenderParameter, width: int, height: int) -> RenderParameter:
+    """Resize the image keeping the focal length; the sensor is rescaled.
+
+    The shorter image side keeps the sensor extent of the square default, so the
+    focal length in pixels is ``f * min(W, H) / min(s_x, s_y)`` (937.5 px at 250²
+    for the default camera).
+    """
+    cam = params.camera
+    s = min(cam.sensor_size)
+    m = min(width, height)
+    sensor = (s * width / m, s * height / m)
+    return params._replace(
+        camera=cam._replace(sensor_size=sensor), image_size=ImageSize(int(width), int(height))
+    )

@@ -1,0 +1,1 @@
+"""Lightstage processing and the synthetic lightstage. Imports only albedo_model."""

@@ -1,0 +1,1 @@
+"""Metropolis-Hastings proposals over fit parameters. Imports only albedo_model."""
