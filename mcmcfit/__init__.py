@@ -5,7 +5,12 @@ Subpackages: likelihoods, sampler, posterior, diagnostics, fitting, command line
 imports ``mcmcfit``.
 """
 
+import os
 from importlib.metadata import PackageNotFoundError, version
+
+# One BLAS thread: OpenBLAS workers spin and steal the second core from Embree
+# and XLA (performance-notes.md §6). Only a default; the environment wins.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 try:
     __version__ = version("mcmcfit")

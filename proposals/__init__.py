@@ -1,1 +1,45 @@
-"""Metropolis-Hastings proposals over fit parameters. Imports only albedo_model."""
+"""Metropolis-Hastings proposals over the fit parameters.
+
+Every proposal is a pure callable ``(rng, params) -> Move`` that declares the
+parameter blocks it may change (``touches``) and returns the exact log
+transition ratio ``log q(x | x') - log q(x' | x)``. Files: ``base`` (interface,
+mixtures), ``pose``, ``coefficients``, ``colour``, ``light``, ``light_solver``,
+``schedule`` (the default mixtures).
+
+This package imports only :mod:`albedo_model`.
+"""
+
+from proposals.base import Mixture, Move, Proposal, leaves, mixture, no_move
+from proposals.coefficients import Caricature, CoefficientWalk
+from proposals.colour import ColorTransformWalk
+from proposals.light import (
+    SHBandMixer,
+    SHColorShift,
+    SHIntensity,
+    SHPerturbation,
+    SHSpatial,
+    SpecularExponentScaling,
+)
+from proposals.light_solver import SHLightSolver, solve_sh_light
+from proposals.pose import Distance, FocalScaling, ImageCentered, Rotation, Translation
+from proposals.schedule import (
+    CENTERING_LANDMARKS,
+    colour_proposal,
+    default_image_proposal,
+    landmark_stage_proposal,
+    light_proposal,
+    momo_proposal,
+    pose_proposal,
+    specular_exponent_proposal,
+)
+
+__all__ = [
+    "Move", "Proposal", "Mixture", "mixture", "leaves", "no_move",
+    "Rotation", "Translation", "Distance", "FocalScaling", "ImageCentered",
+    "CoefficientWalk", "Caricature", "ColorTransformWalk",
+    "SHIntensity", "SHBandMixer", "SHPerturbation", "SHColorShift", "SHSpatial",
+    "SpecularExponentScaling", "SHLightSolver", "solve_sh_light",
+    "CENTERING_LANDMARKS", "pose_proposal", "momo_proposal", "colour_proposal",
+    "light_proposal", "specular_exponent_proposal", "default_image_proposal",
+    "landmark_stage_proposal",
+]

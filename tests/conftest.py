@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -16,3 +18,66 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"shared test data not found at {SHARED_DATA}")
     return SHARED_DATA
+
+
+# -- stand-in template head (pipeline tests) -----------------------------------
+
+HEAD_RADII_MM = np.array([75.0, 100.0, 90.0])
+
+
+@dataclasses.dataclass(frozen=True)
+class StandInHead:
+    """Same attributes as ``pipeline.template_head.TemplateHead``."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    symmetry: np.ndarray
+    landmarks: dict
+    regions: dict
+
+
+def _unit(v):
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+def make_stand_in_head(subdivisions: int = 4) -> StandInHead:
+    """An ellipsoidal 'head' (+x subject's left, +y up, +z toward the viewer), fake regions."""
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    sphere = trimesh.creation.icosphere(subdivisions=subdivisions)
+    u = np.asarray(sphere.vertices, float)
+    v = u * HEAD_RADII_MM
+    mirrored = u * np.array([-1.0, 1.0, 1.0])
+    dist, symmetry = cKDTree(u).query(mirrored)
+    assert dist.max() < 1e-9
+    ax, uy, uz = np.abs(u[:, 0]), u[:, 1], u[:, 2]
+    front = uz > 0.3
+    eye_centres = [_unit([s * 0.33, 0.18, 0.92]) for s in (1.0, -1.0)]
+    eyeballs = np.zeros(len(u), bool)
+    for c in eye_centres:
+        eyeballs |= np.linalg.norm(u - c, axis=1) < 0.11
+    regions = {
+        "eyeballs": eyeballs,
+        "brows": front & (np.abs(ax - 0.33) < 0.16) & (np.abs(uy - 0.37) < 0.05),
+        "nose": (ax < 0.1) & (uy > -0.2) & (uy < 0.15) & (uz > 0.9),
+        "lips": (ax < 0.2) & (uy > -0.46) & (uy < -0.34) & front,
+        "forehead": (uy > 0.45) & (uz > 0.5),
+        "cheeks": (ax > 0.2) & (ax < 0.55) & (uy > -0.35) & (uy < 0.08) & front,
+        "beard": (uy < -0.3) & (uz > 0.2),
+        "ears": (ax > 0.9) & (np.abs(uy) < 0.25),
+    }
+    regions["skin"] = ~eyeballs
+    landmarks = {
+        "left.eye.pupil.center": int(np.argmin(np.linalg.norm(u - eye_centres[0], axis=1))),
+        "right.eye.pupil.center": int(np.argmin(np.linalg.norm(u - eye_centres[1], axis=1))),
+        "center.nose.tip": int(np.argmax(uz)),
+    }
+    return StandInHead(v, np.asarray(sphere.faces, np.int64), symmetry, landmarks, regions)
+
+
+@pytest.fixture(scope="session")
+def stand_in_head() -> StandInHead:
+    """A 2562-vertex stand-in for ``pipeline.template_head.TemplateHead``."""
+    return make_stand_in_head()

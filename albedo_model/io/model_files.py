@@ -13,13 +13,13 @@ Imports only ``albedo_model`` modules.
 from __future__ import annotations
 
 import hashlib
-import importlib
 import os
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from albedo_model.default_model import default_model_path
 from albedo_model.errors import FormatError, InputError
 from albedo_model.io.momo_h5 import (
     AlbedoPart,
@@ -55,16 +55,11 @@ def resolve_model_path(spec: str | os.PathLike) -> Path:
     Raises
     ------
     InputError
-        The file does not exist, or the built-in model is not part of this build.
+        The file does not exist, or the built-in model has not been built yet
+        (``mcmcfit.models.resolve_model`` builds it).
     """
     if isinstance(spec, str) and spec == DEFAULT_MODEL:
-        try:
-            module = importlib.import_module("albedo_model.default_model")
-        except ModuleNotFoundError as exc:
-            if exc.name != "albedo_model.default_model":
-                raise
-            raise InputError("the built-in default model is not available in this build") from None
-        path = Path(module.default_model_path())
+        path = default_model_path()
     else:
         path = Path(spec).expanduser()
     if not path.is_file():

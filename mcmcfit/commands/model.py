@@ -21,9 +21,9 @@ from albedo_model.io.model_files import (
     file_sha256,
     load_model,
     model_file_kind,
-    resolve_model_path,
 )
 from albedo_model.io.momo_h5 import read_albedo_part
+from mcmcfit.models import resolve_model
 
 __all__ = ["register", "ACTIONS", "model_info"]
 
@@ -43,7 +43,7 @@ def model_info(spec: str) -> dict[str, Any]:
     ``landmarks_on_vertices``, ``colour_space``, ``metadata``; a FLAME npz
     also has ``texture_shape`` (and ``vertices``/``triangles`` are None).
     """
-    path = resolve_model_path(spec)
+    path = resolve_model(spec)
     kind = model_file_kind(path)
     info: dict[str, Any] = {
         "path": str(path), "sha256": file_sha256(path), "format": _FORMATS[kind],
@@ -146,8 +146,36 @@ def register_combine(actions: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_run_combine)
 
 
+def register_sample(actions: argparse._SubParsersAction) -> None:
+    """Add ``model sample``."""
+    from mcmcfit.commands import model_sample
+
+    p = actions.add_parser(
+        "sample", help="render random albedo samples of a model as a grid",
+        description="Random faces (albedo ~ N(0, I), mean shape) at random yaw in +-30 degrees, "
+                    "white frontal light, Blinn-Phong (shininess 20), gamma 2.2.",
+    )
+    model_sample.add_arguments(p)
+    p.set_defaults(func=model_sample.run)
+
+
+def register_specgen(actions: argparse._SubParsersAction) -> None:
+    """Add ``model specgen``."""
+    from mcmcfit.commands import model_specgen
+
+    p = actions.add_parser(
+        "specgen", help="leave-one-out generalisation of the three specular model variants",
+        description="Builds the synthetic population and plots the leave-one-out specular "
+                    "error of the independent, concatenated and transferred models.",
+    )
+    model_specgen.add_arguments(p)
+    p.set_defaults(func=model_specgen.run)
+
+
 #: One registrar per ``model`` action, in help order.
-ACTIONS: list[Callable[[argparse._SubParsersAction], None]] = [register_info, register_combine]
+ACTIONS: list[Callable[[argparse._SubParsersAction], None]] = [
+    register_info, register_combine, register_sample, register_specgen,
+]
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

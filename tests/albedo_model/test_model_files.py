@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import sys
-import types
 from pathlib import Path
 
 import numpy as np
@@ -22,18 +20,18 @@ from albedo_model.io.model_files import (
 from albedo_model.io.momo_h5 import AlbedoPart, write_albedo_part, write_model_h5
 
 
-def test_resolve_default_without_module(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(sys.modules, "albedo_model.default_model", None)
-    with pytest.raises(InputError, match="built-in default model is not available"):
+def test_resolve_default_before_it_is_built(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("MCMCFIT_CACHE", str(tmp_path))
+    with pytest.raises(InputError, match="has not been built yet"):
         resolve_model_path("default")
 
 
-def test_resolve_default_with_module(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    write_model_h5(synthetic_model(0), tmp_path / "default.h5")
-    fake = types.ModuleType("albedo_model.default_model")
-    fake.default_model_path = lambda: tmp_path / "default.h5"
-    monkeypatch.setitem(sys.modules, "albedo_model.default_model", fake)
-    assert resolve_model_path("default") == tmp_path / "default.h5"
+def test_resolve_default_from_the_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from albedo_model.default_model import default_model_path
+
+    monkeypatch.setenv("MCMCFIT_CACHE", str(tmp_path))
+    write_model_h5(synthetic_model(0), default_model_path(must_exist=False))
+    assert resolve_model_path("default") == default_model_path()
     assert load_model("default").specular is not None
 
 

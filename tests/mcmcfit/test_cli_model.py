@@ -236,9 +236,22 @@ def test_bad_shape_in_combine_writes_nothing(
     assert not (tmp_path / "joint.h5").exists()
 
 
-def test_default_model_missing(
-    capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+def test_default_model_from_cache(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setitem(sys.modules, "albedo_model.default_model", None)
-    assert main(["model", "info", "default"]) == 2
-    assert "built-in default model is not available" in one_line(capsys.readouterr().err)
+    from albedo_model.default_model import default_model_path
+    from albedo_model.io.momo_h5 import write_model_h5
+
+    from albedo_model.model import MorphableModel
+
+    monkeypatch.setenv("MCMCFIT_CACHE", str(tmp_path))
+    v, t = grid()
+    rng = np.random.default_rng(0)
+    part = lambda: PCAPart(rng.random(v.size, np.float32), np.eye(v.size, 2, dtype=np.float32),  # noqa: E731
+                           np.ones(2, np.float32))
+    write_model_h5(MorphableModel(v, t, part(), part(), specular=part()),
+                   default_model_path(must_exist=False))
+    assert main(["model", "info", "default", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["path"] == str(default_model_path())
+

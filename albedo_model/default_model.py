@@ -1,0 +1,46 @@
+"""Where the built-in default model lives (a cached file; building it is ``pipeline``'s job).
+
+The default model is built deterministically by
+:func:`pipeline.default_model.ensure_default_model` on first use and cached at
+:func:`default_model_path`. This module only knows the location, so that the
+lowest package can resolve ``"default"`` without importing the builder.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from albedo_model.errors import InputError
+
+__all__ = ["BUILD_VERSION", "cache_dir", "default_model_path"]
+
+#: Bumped whenever the builder's output changes; part of the cached file name.
+BUILD_VERSION = 1
+
+
+def cache_dir() -> Path:
+    """``$MCMCFIT_CACHE``, else ``$XDG_CACHE_HOME/mcmcfit``, else ``~/.cache/mcmcfit``."""
+    env = os.environ.get("MCMCFIT_CACHE")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "mcmcfit"
+
+
+def default_model_path(*, must_exist: bool = True) -> Path:
+    """The cached default model file.
+
+    Parameters
+    ----------
+    must_exist : bool
+        Raise :class:`InputError` when the model has not been built yet (the
+        ``mcmcfit`` commands build it on first use).
+    """
+    path = cache_dir() / f"default-albedo-model-v{BUILD_VERSION}.h5"
+    if must_exist and not path.is_file():
+        raise InputError(
+            f"{path}: the built-in default model has not been built yet "
+            "(any `mcmcfit ... default` command builds it)"
+        )
+    return path

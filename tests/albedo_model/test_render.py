@@ -1,0 +1,219 @@
+"""End-to-end rendering: the cached renderer against a brute-force z-buffer,
+against a full re-render, on the scalismo head, and through ``mcmcfit render``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from zbuffer_reference import render_zbuffer
+
+from albedo_model.model import MorphableModel, vertex_normals
+from albedo_model.params import (
+    Block, Camera, ColorTransform, ImageSize, MoMoCoefficients, Pose, SHLight, default_square,
+)
+from albedo_model.pca import PCAPart
+from albedo_model.render import Renderer
+from albedo_model.sh import sh_irradiance
+
+
+def bumpy_model(seed=0, k=4):
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=60.0)
+    v = np.asarray(mesh.vertices)
+    v = v * (1.0 + 0.08 * np.sin(3 * v[:, :1] / 60.0) * np.cos(2 * v[:, 1:2] / 60.0))
+    rng = np.random.default_rng(seed)
+    n3 = 3 * len(v)
+
+    def part(mean, scale):
+        q, _ = np.linalg.qr(rng.standard_normal((n3, k)))
+        return PCAPart(mean, q, np.full(k, scale))
+
+    colour = 0.5 + 0.3 * np.sin(v / 17.0)
+    return MorphableModel(v, np.asarray(mesh.faces), part(v.ravel(), 400.0),
+                          part(colour.ravel(), 0.5), specular=part(np.full(n3, 0.3), 0.2))
+
+
+def scene(size=(64, 48), yaw=0.3, pitch=-0.2, sh=None, pp=(0.05, -0.1)):
+    p = default_square()
+    sh = SHLight.ambient_white() if sh is None else sh
+    return p._replace(
+        pose=Pose(1.0, (4.0, -3.0, -700.0), 0.1, yaw, pitch),
+        camera=Camera(focal_length=7.5, sensor_size=(2.0, 2.0 * size[1] / size[0]),
+                      principal_point=pp),
+        image_size=ImageSize(*size), environment_map=sh,
+        momo=MoMoCoefficients(np.array([0.3, -0.2]), np.array([0.5, 0.1, -0.4]), np.zeros(0)),
+    )
+
+
+def zbuffer_image(model, params, sh_coeffs):
+    """Independent reference: numpy z-buffer + barycentric interpolation + numpy SH."""
+    verts = model.shape_instance(params.momo.shape)
+    albedo = model.diffuse_instance(params.momo.color)
+    normals = vertex_normals(verts, model.triangles)
+    prim, bary, _ = render_zbuffer(verts, model.triangles, params.pose, params.view, params.camera,
+                                params.image_size)
+    hit = prim >= 0
+    tri = model.triangles[np.maximum(prim, 0)]
+    w = np.stack([1 - bary[..., 0] - bary[..., 1], bary[..., 0], bary[..., 1]], -1)
+    interp = lambda a: np.einsum("hwk,hwkc->hwc", w, a[tri])  # noqa: E731
+    from albedo_model.camera import euler_rotation
+    r = euler_rotation(params.pose.roll, params.pose.yaw, params.pose.pitch)
+    n = interp(normals) @ r.T
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    img = interp(albedo) * sh_irradiance(sh_coeffs, n)
+    return np.where(hit[..., None], np.clip(img, 0, 1), 0.0), hit
+
+
+@pytest.mark.parametrize("yaw,pitch", [(0.0, 0.0), (0.5, -0.3), (1.3, 0.2)])
+def test_renderer_matches_zbuffer_reference(yaw, pitch):
+    model = bumpy_model()
+    sh = SHLight(np.array([[0.9, 0.8, 0.7], [0.1, 0.0, -0.1], [0.3, 0.3, 0.2], [-0.2, 0.1, 0.0],
+                           [0.05, 0, 0], [0, 0.05, 0], [0.02, 0.02, 0.02], [0, 0, 0.03], [0.01, 0, 0]]))
+    params = scene(yaw=yaw, pitch=pitch, sh=sh)
+    out = Renderer(model, specular=False).render(params)
+    ref, ref_mask = zbuffer_image(model, params, sh.coefficients)
+    agree = (out.mask == ref_mask).mean()
+    assert agree >= 0.995, agree
+    both = out.mask & ref_mask
+    assert both.sum() > 500
+    assert np.abs(out.image[both] - ref[both]).max() <= 1e-4
+
+
+def test_ambient_white_reproduces_albedo():
+    model = bumpy_model()
+    params = scene()
+    out = Renderer(model, specular=False).render(params)
+    ref, mask = zbuffer_image(model, params, SHLight.ambient_white().coefficients)
+    both = out.mask & mask
+    np.testing.assert_allclose(out.image[both], ref[both], atol=1e-4)
+
+
+def moves(params, rng):
+    """One changed parameter set per block, as a proposal would make."""
+    m = params.momo
+    yield Block.POSE, params._replace(pose=params.pose._replace(yaw=params.pose.yaw + 0.2))
+    yield Block.CAMERA, params._replace(camera=params.camera._replace(focal_length=8.0))
+    yield Block.SHAPE, params._replace(momo=m._replace(shape=m.shape + rng.normal(0, 1, 2)))
+    yield Block.ALBEDO, params._replace(momo=m._replace(color=m.color + rng.normal(0, 1, 3)))
+    sh = params.environment_map.coefficients * 0.7
+    yield Block.LIGHT, params._replace(environment_map=SHLight(sh))
+    yield Block.COLOR, params._replace(color_transform=ColorTransform((1.1, 0.9, 1.0), 0.8, (0.01, 0, 0)))
+
+
+def test_cached_update_equals_full_render_and_reject_restores():
+    model = bumpy_model()
+    rng = np.random.default_rng(1)
+    renderer = Renderer(model, gamma=True)
+    state = renderer.init_state(scene(sh=SHLight.frontal()))
+    before = renderer.image(state).image
+    for touched, params in moves(state.params, rng):
+        cand = renderer.update(state, params, touched)
+        fresh = Renderer(model, gamma=True).render(params)
+        np.testing.assert_allclose(renderer.image(cand).image, fresh.image, atol=2e-5)
+        # untouched blocks are bit-identical
+        if not touched & (Block.SHAPE | Block.EXPRESSION | Block.POSE | Block.CAMERA):
+            assert cand.prim_id is state.prim_id
+        if not touched & Block.ALBEDO:
+            assert cand.diffuse is state.diffuse
+        renderer.reject()
+        np.testing.assert_array_equal(renderer.image(state).image, before)
+    # accept a shape move, then a pose move casts with the accepted geometry
+    m = state.params.momo
+    shape_params = state.params._replace(momo=m._replace(shape=np.array([1.0, 1.0])))
+    state = renderer.accept(renderer.update(state, shape_params, Block.SHAPE))
+    pose_params = shape_params._replace(pose=shape_params.pose._replace(yaw=0.9))
+    cand = renderer.update(state, pose_params, Block.POSE)
+    np.testing.assert_allclose(renderer.image(cand).image,
+                               Renderer(model, gamma=True).render(pose_params).image, atol=2e-5)
+
+
+def test_specular_and_directional_light_with_shadows_are_finite():
+    from albedo_model.params import DirectionalLight
+    model = bumpy_model()
+    params = scene(sh=SHLight.frontal())._replace(
+        directional_light=DirectionalLight((0.1,) * 3, (0.8,) * 3, (1.0, 0.3, 0.5), (0.2,) * 3, 20.0),
+        specular_exponent=20.0,
+    )
+    r = Renderer(model, shadows=True, gamma=True)
+    assert r.effects(params).shadows and r.effects(params).specular
+    out = r.render(params)
+    assert np.isfinite(out.image).all() and out.image.max() <= 1.0
+    lit = Renderer(model, shadows=False, gamma=True).render(params)
+    # shadows only darken
+    assert np.all(out.image <= lit.image + 1e-6)
+    assert (out.image < lit.image - 1e-3).any()
+
+
+def test_scalismo_head_landmarks(shared_data, tmp_path):
+    """random-l4 mean with the pose, camera and light of AlbedoMM's lminit at 250x250."""
+    from albedo_model.camera import project
+    from albedo_model.io.image_io import write_png
+    from albedo_model.io.model_files import load_model
+    from albedo_model.io.rps import read_rps
+
+    model = load_model(shared_data / "scalismo" / "random-l4.h5")
+    p = read_rps(shared_data / "scalismo" / "albedomm-fitter-lminit.rps")
+    p = p._replace(momo=MoMoCoefficients.zeros())
+    renderer = Renderer(model)
+    out = renderer.render(p)
+    names, px, vis = renderer.landmarks(out.state)
+    write_png(tmp_path / "head.png", out.image, alpha=out.mask)
+    lm = dict(zip(names, px))
+    # the formula, evaluated independently
+    v = model.shape.mean.reshape(-1, 3)[model.landmark_vertices["center.nose.tip"]]
+    expected, _ = project(v[None], p.pose, p.view, p.camera, p.image_size)
+    np.testing.assert_allclose(lm["center.nose.tip"], expected[0], atol=1e-9)
+    # visible landmarks lie on the rendered face (within a pixel: ear rims are silhouette)
+    for name, (x, y), visible in zip(names, px, vis):
+        if visible:
+            j, i = int(round(y)), int(round(x))
+            assert out.mask[j - 1:j + 2, i - 1:i + 2].any(), name
+    assert lm["left.eye.corner_outer"][0] > lm["right.eye.corner_outer"][0]  # subject's left = image right
+    assert lm["left.lips.corner"][0] > lm["right.lips.corner"][0]
+    order = ["right.eyebrow.bend.lower", "right.eye.corner_outer", "center.nose.tip",
+             "center.lips.upper.outer", "center.lips.lower.outer", "center.chin.tip"]
+    ys = [lm[n][1] for n in order]
+    assert ys == sorted(ys), dict(zip(order, ys))
+    visible = dict(zip(names, vis))
+    assert all(visible[n] for n in order)
+    assert 0.1 < out.mask.mean() < 0.6
+
+
+def test_render_cli_png_rgba_and_linear(shared_data, tmp_path):
+    import imageio.v3 as iio
+
+    from mcmcfit.cli import main
+    model = shared_data / "scalismo" / "random-l4.h5"
+    rps = shared_data / "scalismo" / "albedomm-fitter-lminit.rps"
+    # lminit holds 50 zero coefficients; this model has rank 19 and zeros beyond are an error
+    from albedo_model.io.rps import read_rps, write_rps
+    p = read_rps(rps)
+    write_rps(tmp_path / "p.rps", p._replace(momo=MoMoCoefficients.zeros(19, 19)))
+    assert main(["render", str(model), str(tmp_path / "p.rps"), "-o", str(tmp_path / "a.png")]) == 0
+    a = iio.imread(tmp_path / "a.png")
+    assert a.shape == (250, 250, 4) and a.dtype == np.uint8
+    assert set(np.unique(a[..., 3])) == {0, 255}
+    assert main(["render", str(model), str(tmp_path / "p.rps"), "-o", str(tmp_path / "b.png"),
+                 "--linear", "--size", "100x80"]) == 0
+    import png
+    w, h, rows, info = png.Reader(filename=str(tmp_path / "b.png")).read()
+    assert (w, h, info["bitdepth"], info["planes"]) == (100, 80, 16, 4)
+    b = np.vstack([np.asarray(r, np.uint16) for r in rows]).reshape(80, 100, 4)
+    assert b[..., 3].max() == 65535 and b[..., :3].max() > 0
+
+
+def test_render_cli_bad_input(shared_data, tmp_path, capsys):
+    from mcmcfit.cli import main
+    model = shared_data / "scalismo" / "random-l4.h5"
+    bad = tmp_path / "bad.rps"
+    bad.write_text('{"version": "V9.0"}')
+    out = tmp_path / "x.png"
+    assert main(["render", str(model), str(bad), "-o", str(out)]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.rps" in err[0]
+    assert not out.exists()
+    # too many coefficients for the model
+    rps = shared_data / "scalismo" / "albedomm-fit-best.rps"
+    assert main(["render", str(model), str(rps), "-o", str(out)]) != 0
+    assert "rank 19" in capsys.readouterr().err
+    assert not out.exists()
