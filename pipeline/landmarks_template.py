@@ -65,20 +65,20 @@ _EAR_ANCHORS = {
     "ear.helix.center": (84.0, 0.0, -10.0),
 }
 
+_SIDED = (
+    *_FRONT_ANCHORS, *_EAR_ANCHORS, "lips.corner", "eye.pupil.center", "nose.hole.center",
+    "ear.helix.top", "ear.lobule.tip", "ear.helix.outer",
+)  # fmt: skip
+_CENTER = (
+    "center.nose.tip", "center.nose.attachement_to_philtrum", "center.lips.upper.outer",
+    "center.lips.upper.inner", "center.lips.lower.inner", "center.lips.lower.outer",
+    "center.chin.tip", "center.front.trichion",
+)  # fmt: skip
+
 #: Every landmark name the template carries.
 LANDMARK_NAMES = tuple(
-    sorted(
-        [f"{side}.{n}" for n in (*_FRONT_ANCHORS, *_EAR_ANCHORS, "lips.corner")
-         for side in ("left", "right")]
-        + [f"{side}.{n}" for n in ("eye.pupil.center", "nose.hole.center", "ear.helix.top",
-                                   "ear.lobule.tip", "ear.helix.outer") for side in ("left", "right")]
-        + [
-            "center.nose.tip", "center.nose.attachement_to_philtrum", "center.lips.upper.outer",
-            "center.lips.upper.inner", "center.lips.lower.inner", "center.lips.lower.outer",
-            "center.chin.tip", "center.front.trichion",
-        ]
-    )
-)  # fmt: skip
+    sorted([f"{side}.{n}" for n in _SIDED for side in ("left", "right")] + list(_CENTER))
+)
 
 
 def _front_vertex(v: np.ndarray, facing: np.ndarray, xy: tuple[float, float]) -> int:

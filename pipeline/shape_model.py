@@ -21,13 +21,14 @@ Expression
     orthonormalised in that order.
 
 Both use the interleaved layout ``x0 y0 z0 x1 ...`` in mm. Imports only
-:mod:`albedo_model.pca` and :mod:`pipeline.template_head`.
+:mod:`albedo_model`, :mod:`pipeline.head_sdf` and :mod:`pipeline.template_head`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from albedo_model.errors import InputError
 from albedo_model.pca import PCAPart
 from pipeline.head_sdf import feature_sdfs
 from pipeline.template_head import TemplateHead
@@ -191,7 +192,7 @@ def build_shape_model(template: TemplateHead, *, rank: int = 40, seed: int = 0) 
         (``mirror_flat(u) = +-u``); ``variance`` in mm^2, decreasing.
     """
     if rank < 1:
-        raise ValueError(f"rank must be positive, got {rank}")
+        raise InputError(f"shape model rank must be positive, got {rank}")
     rng = np.random.default_rng(seed)
     v = template.vertices
     n = len(v)

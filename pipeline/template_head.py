@@ -1,15 +1,17 @@
 """The procedural template head: meshing of :mod:`pipeline.head_sdf`.
 
 The field is sampled on a grid over the half space ``x >= 0`` whose spacing is
-finer over the face than over the back of the head and the neck (a separable
-warp of a regular grid), meshed by marching cubes and mirrored across
-``x = 0``; the vertices on the plane ``x = 0`` are shared. The symmetry map is
-therefore exact by construction. Marching-cube stair steps are then removed by
-tangential relaxation and re-projection onto the zero set of the field,
-followed by exact re-symmetrisation.
+finer over the face than over the back of the head and the neck (a smooth warp
+of a regular grid, see ``_warp``) and meshed by marching cubes; the ears, which
+lie where the grid is coarse, are refined 1:4. The half mesh is mirrored
+across ``x = 0`` sharing the vertices on that plane, so the symmetry map and the
+triangulation are exactly symmetric by construction. Marching-cube stair steps
+are then removed by tangential relaxation with re-projection onto the zero set
+of the field, and the positions are re-symmetrised exactly.
 
-Imports only :mod:`pipeline.head_sdf`, :mod:`pipeline.landmarks_template`,
-:mod:`pipeline.regions` and third-party packages.
+Imports only :mod:`albedo_model.errors`, :mod:`pipeline.head_sdf`,
+:mod:`pipeline.landmarks_template`, :mod:`pipeline.regions` and third-party
+packages.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import dataclasses
 import numpy as np
 from skimage.measure import marching_cubes
 
+from albedo_model.errors import InputError
 from pipeline.head_sdf import HEAD_BOUNDS, Points, as_points, head_sdf
 from pipeline.landmarks_template import place_landmarks
 from pipeline.regions import region_masks
@@ -220,7 +223,7 @@ def _normals(v: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def _project(v: np.ndarray, steps: int = 2) -> np.ndarray:
-    """Newton steps onto the zero set of the field (central-difference gradient)."""
+    """Newton steps onto the zero set of the field (forward-difference gradient)."""
     eps = 0.05
     for _ in range(steps):
         x, y, z = as_points(v)
@@ -278,10 +281,15 @@ def build_template_head(*, resolution: float | None = None) -> TemplateHead:
     Returns
     -------
     TemplateHead
+
+    Raises
+    ------
+    InputError
+        If ``resolution`` is outside [0.5, 10] mm.
     """
     h = DEFAULT_RESOLUTION if resolution is None else float(resolution)
     if not 0.5 <= h <= 10.0:
-        raise ValueError(f"resolution must be within [0.5, 10] mm, got {h}")
+        raise InputError(f"template resolution must be within [0.5, 10] mm, got {h}")
     xs, ys, zs = _grid(h)
     vol = _sample(xs, ys, zs)
     verts, faces, _, _ = marching_cubes(

@@ -81,3 +81,25 @@ def make_stand_in_head(subdivisions: int = 4) -> StandInHead:
 def stand_in_head() -> StandInHead:
     """A 2562-vertex stand-in for ``pipeline.template_head.TemplateHead``."""
     return make_stand_in_head()
+
+
+@pytest.fixture(scope="session")
+def default_model_file(tmp_path_factory) -> Path:
+    """The real built-in default model, built once per test session into a temporary cache.
+
+    Sets ``MCMCFIT_CACHE`` for the session so that ``default`` resolves to it.
+    """
+    import os
+
+    from pipeline.default_model import ensure_default_model
+
+    cache = tmp_path_factory.mktemp("mcmcfit-cache")
+    old = os.environ.get("MCMCFIT_CACHE")
+    os.environ["MCMCFIT_CACHE"] = str(cache)
+    try:
+        yield ensure_default_model(progress=False)
+    finally:
+        if old is None:
+            os.environ.pop("MCMCFIT_CACHE", None)
+        else:
+            os.environ["MCMCFIT_CACHE"] = old

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from albedo_model.errors import InputError
 from pipeline.shape_model import (
     EXPRESSION_MODES,
     _kernel,
@@ -80,8 +81,11 @@ def test_rigid_motions_are_projected_out(head, shape) -> None:
 
 
 def test_total_variance_is_bounded_by_the_kernel(head, shape) -> None:
-    """Nyström, the down-weighted antisymmetric part, projections and truncation only
-    remove variance: the model's total variance is at most the trace of the kernel."""
+    """The model's total variance is at most the trace of the kernel.
+
+    Nyström, the down-weighted antisymmetric part, projections and truncation
+    only remove variance.
+    """
     v = head.vertices
     trace = sum(np.trace(_kernel(v[i : i + 500], v[i : i + 500])) for i in range(0, len(v), 500))
     total = shape.variance.sum()
@@ -116,7 +120,7 @@ def test_seeded_rebuild(head, shape) -> None:
 
 
 def test_rank_is_validated(head) -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(InputError):
         build_shape_model(head, rank=0)
 
 

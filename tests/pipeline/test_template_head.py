@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import pipeline.head_sdf as head_sdf_module
+from albedo_model.errors import InputError
 from pipeline.head_sdf import EYE, as_points, head_sdf
 from pipeline.landmarks_template import LANDMARK_NAMES, LFW_TLMS_NAMES
 from pipeline.regions import REGION_NAMES
@@ -145,9 +146,12 @@ def test_landmark_geometry(head: TemplateHead) -> None:
         < p("left.eyebrow.inner_lower")[1]
         < p("left.eyebrow.inner_upper")[1]
     )
-    ys = [p(n)[1] for n in ("center.front.trichion", "center.nose.tip",
-                            "center.nose.attachement_to_philtrum", "center.lips.upper.outer",
-                            "center.lips.upper.inner", "center.lips.lower.outer", "center.chin.tip")]  # fmt: skip
+    top_down = (
+        "center.front.trichion", "center.nose.tip", "center.nose.attachement_to_philtrum",
+        "center.lips.upper.outer", "center.lips.upper.inner", "center.lips.lower.outer",
+        "center.chin.tip",
+    )  # fmt: skip
+    ys = [p(n)[1] for n in top_down]
     assert ys == sorted(ys, reverse=True)
     # the closed mouth's crease lies behind both lips
     assert p("center.lips.upper.inner")[2] < p("center.lips.upper.outer")[2]
@@ -203,5 +207,5 @@ def test_regions_are_present_symmetric_and_plausible(head: TemplateHead) -> None
 
 
 def test_resolution_is_validated() -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(InputError):
         build_template_head(resolution=0.1)
