@@ -15,8 +15,9 @@ from albedo_model.errors import InputError
 
 __all__ = ["BUILD_VERSION", "cache_dir", "default_model_path"]
 
-#: Bumped whenever the builder's output changes; part of the cached file name.
+#: Bumped whenever the file layout of the default model changes.
 BUILD_VERSION = 1
+_PREFIX = f"default-albedo-model-v{BUILD_VERSION}-"
 
 
 def cache_dir() -> Path:
@@ -28,16 +29,25 @@ def cache_dir() -> Path:
     return Path(base) / "mcmcfit"
 
 
-def default_model_path(*, must_exist: bool = True) -> Path:
+def default_model_path(fingerprint: str | None = None, *, must_exist: bool = True) -> Path:
     """The cached default model file.
 
     Parameters
     ----------
+    fingerprint : str, optional
+        Identifies the builder's code and settings (``pipeline`` computes it), so
+        that a changed builder never serves a stale cache. Without it, the most
+        recently built default model in the cache is returned.
     must_exist : bool
-        Raise :class:`InputError` when the model has not been built yet (the
+        Raise :class:`InputError` when no such file has been built yet (the
         ``mcmcfit`` commands build it on first use).
     """
-    path = cache_dir() / f"default-albedo-model-v{BUILD_VERSION}.h5"
+    folder = cache_dir()
+    if fingerprint is not None:
+        path = folder / f"{_PREFIX}{fingerprint}.h5"
+    else:
+        built = sorted(folder.glob(f"{_PREFIX}*.h5"), key=lambda p: p.stat().st_mtime)
+        path = built[-1] if built else folder / f"{_PREFIX}unbuilt.h5"
     if must_exist and not path.is_file():
         raise InputError(
             f"{path}: the built-in default model has not been built yet "

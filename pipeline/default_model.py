@@ -10,6 +10,7 @@ in the AlbedoMM layout, so it is read by the same loader as AlbedoMM/BFM files.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import sys
 import time
@@ -105,6 +106,22 @@ def build_default_model(
     )
 
 
+#: Modules whose code determines the default model's content.
+_BUILDER_MODULES = ("default_model", "template_head", "head_sdf", "landmarks_template", "regions",
+                    "shape_model", "subjects", "skin_spectral", "camera_colour",
+                    "albedo_model_build")
+
+
+def default_model_fingerprint() -> str:
+    """Hash of the builder's source code and settings (names the cached file)."""
+    h = hashlib.sha256(repr((BUILD_VERSION, DEFAULT_SEED, DEFAULT_SUBJECTS,
+                             sorted(DEFAULT_RANKS.items()))).encode())
+    here = Path(__file__).resolve().parent
+    for name in _BUILDER_MODULES:
+        h.update((here / f"{name}.py").read_bytes())
+    return h.hexdigest()[:16]
+
+
 def ensure_default_model(*, progress: bool = True) -> Path:
     """Path of the cached default model, building and writing it first if needed.
 
@@ -113,7 +130,7 @@ def ensure_default_model(*, progress: bool = True) -> Path:
     """
     from albedo_model.io.momo_h5 import write_model_h5
 
-    path = default_model_path(must_exist=False)
+    path = default_model_path(default_model_fingerprint(), must_exist=False)
     if path.is_file():
         return path
     path.parent.mkdir(parents=True, exist_ok=True)

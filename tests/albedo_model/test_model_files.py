@@ -30,7 +30,7 @@ def test_resolve_default_from_the_cache(tmp_path: Path, monkeypatch: pytest.Monk
     from albedo_model.default_model import default_model_path
 
     monkeypatch.setenv("MCMCFIT_CACHE", str(tmp_path))
-    write_model_h5(synthetic_model(0), default_model_path(must_exist=False))
+    write_model_h5(synthetic_model(0), default_model_path('test', must_exist=False))
     assert resolve_model_path("default") == default_model_path()
     assert load_model("default").specular is not None
 

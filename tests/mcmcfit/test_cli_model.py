@@ -244,13 +244,16 @@ def test_default_model_from_cache(
 
     from albedo_model.model import MorphableModel
 
+    import pipeline.default_model
+
     monkeypatch.setenv("MCMCFIT_CACHE", str(tmp_path))
+    monkeypatch.setattr(pipeline.default_model, "default_model_fingerprint", lambda: "test")
     v, t = grid()
     rng = np.random.default_rng(0)
     part = lambda: PCAPart(rng.random(v.size, np.float32), np.eye(v.size, 2, dtype=np.float32),  # noqa: E731
                            np.ones(2, np.float32))
     write_model_h5(MorphableModel(v, t, part(), part(), specular=part()),
-                   default_model_path(must_exist=False))
+                   default_model_path('test', must_exist=False))
     assert main(["model", "info", "default", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["path"] == str(default_model_path())
