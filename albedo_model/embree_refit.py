@@ -96,7 +96,8 @@ def _read_ptr(address: int) -> int:
 
 def _scene_handles(scene, device) -> tuple[int, int]:
     """(RTCScene, RTCDevice) of an embreex scene, after checking the object layout."""
-    if type(scene).__basicsize__ != _SCENE_BASICSIZE or type(device).__basicsize__ != _DEVICE_BASICSIZE:
+    sizes = type(scene).__basicsize__, type(device).__basicsize__
+    if sizes != (_SCENE_BASICSIZE, _DEVICE_BASICSIZE):
         raise RefitUnavailable("unexpected embreex object layout (sizes)")
     if _read_ptr(id(scene) + _OFF_DEVICE_OBJ) != id(device):
         raise RefitUnavailable("unexpected embreex object layout (device)")

@@ -136,7 +136,8 @@ class RayCaster:
                  threads: int | None = None, robust: bool = False, update: str = "auto"):
         tri = np.asarray(triangles)
         if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-            raise InputError(f"triangles must be an (m, 3) integer array, got {tri.shape} {tri.dtype}")
+            raise InputError(
+                f"triangles must be an (m, 3) integer array, got {tri.shape} {tri.dtype}")
         v = self._checked_vertices(vertices, None)
         if tri.size and (tri.min() < 0 or tri.max() >= len(v)):
             raise InputError(f"triangle indices must lie in [0, {len(v)})")

@@ -33,7 +33,8 @@ class SceneSlots:
 
     def __init__(self, vertices: np.ndarray, triangles: np.ndarray, **caster_options):
         self._options = caster_options
-        self._slots: list[RayCaster | None] = [RayCaster(vertices, triangles, **caster_options), None]
+        first = RayCaster(vertices, triangles, **caster_options)
+        self._slots: list[RayCaster | None] = [first, None]
         self._pending = False
 
     @property

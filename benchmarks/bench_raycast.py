@@ -3,8 +3,9 @@
 Prints median milliseconds per call: primary-ray cast at 128², 250², 512² with 1
 and 2 threads (robust off and on), geometry update by in-place refit vs rebuild,
 and the pose -> model-frame ray transform. Run as
-``python benchmarks/bench_raycast.py [--repeats N]``. Another busy process on
-the machine changes the 2-thread figures most (see performance-notes.md).
+``OPENBLAS_NUM_THREADS=1 python benchmarks/bench_raycast.py [--repeats N]``.
+Figures vary by up to ~1.5x between runs on a shared VM, and another busy
+process takes the 2-thread gain away (see performance-notes.md).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ def face_mesh(n_side: int = 232, seed: int = 0) -> tuple[np.ndarray, np.ndarray]
 
 
 def median_ms(fn, repeats: int) -> float:
+    """Median wall time of consecutive calls (warm caches, as in a chain reusing one BVH)."""
     fn()
     times = []
     for _ in range(repeats):
@@ -71,15 +73,15 @@ def main(argv: list[str] | None = None) -> int:
         grid = (res, res)
         cover = casters[(1, False)].cast(o, d, tfar=far).mask.mean()
         row = [f"{res}x{res} (face {100 * cover:.0f}% of pixels):"]
-        for (th, rb), c in casters.items():
-            ms = median_ms(lambda c=c: c.cast(o, d, tfar=far, image_shape=grid), args.repeats)
-            row.append(f"{th} thr{' robust' if rb else ''} {ms:.2f} ms")
-        print("  ".join(row))
         out = (np.empty_like(o), np.empty_like(d))
-        ms = median_ms(lambda: cam.camera_rays(p.camera, p.image_size, pose._replace(yaw=0.3),
-                                               p.view, out=out), args.repeats)
-        raw = median_ms(lambda: casters[(1, False)]._scene.run(o, d, far, "INTERSECT", 1),
-                        args.repeats)
+        fns = [lambda c=c: c.cast(o, d, tfar=far, image_shape=grid) for c in casters.values()]
+        fns.append(lambda: casters[(1, False)]._scene.run(o, d, far, "INTERSECT", 1))
+        fns.append(lambda: cam.camera_rays(p.camera, p.image_size, pose._replace(yaw=0.3),
+                                           p.view, out=out))
+        *cast_ms, raw, ms = (median_ms(fn, args.repeats) for fn in fns)
+        for (th, rb), t in zip(casters, cast_ms):
+            row.append(f"{th} thr{' robust' if rb else ''} {t:.2f} ms")
+        print("  ".join(row))
         print(f"    ray transform (pose change, preallocated): {ms:.3f} ms; "
               f"bare embreex run (1 thr, no culling/leak checks): {raw:.2f} ms")
 

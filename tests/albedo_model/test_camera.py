@@ -11,9 +11,10 @@ from albedo_model.params import Camera, ImageSize, Pose, View
 
 def test_euler_rotation_axes_and_order():
     x, y, z = np.eye(3)
-    np.testing.assert_allclose(cam.euler_rotation(np.pi / 2, 0, 0) @ x, y, atol=1e-15)  # roll about z
-    np.testing.assert_allclose(cam.euler_rotation(0, np.pi / 2, 0) @ z, x, atol=1e-15)  # yaw about y
-    np.testing.assert_allclose(cam.euler_rotation(0, 0, np.pi / 2) @ y, z, atol=1e-15)  # pitch about x
+    quarter = np.pi / 2
+    np.testing.assert_allclose(cam.euler_rotation(quarter, 0, 0) @ x, y, atol=1e-15)  # roll: z
+    np.testing.assert_allclose(cam.euler_rotation(0, quarter, 0) @ z, x, atol=1e-15)  # yaw: y
+    np.testing.assert_allclose(cam.euler_rotation(0, 0, quarter) @ y, z, atol=1e-15)  # pitch: x
     # pitch is applied first: Rz(roll) Ry(yaw) Rx(pitch)
     roll, yaw, pitch = 0.3, -0.7, 1.1
     composed = (cam.euler_rotation(roll, 0, 0) @ cam.euler_rotation(0, yaw, 0)
@@ -29,7 +30,8 @@ def test_project_hand_computed_nonsquare_principal_point():
                     principal_point=(0.1, -0.2))
     size = ImageSize(200, 100)
     px, depth = cam.project(np.array([[10.0, 20.0, 0.0]]), Pose(), View(), camera, size)
-    # u = 200/2 (1 + 0.1) + (200 * 7.5 / 4) * 10 / 1000; v = 100/2 (1 + 0.2) - (100 * 7.5 / 2) * 20 / 1000
+    # u = 200/2 (1 + 0.1) + (200 * 7.5 / 4) * 10 / 1000
+    # v = 100/2 (1 + 0.2) - (100 * 7.5 / 2) * 20 / 1000
     np.testing.assert_allclose(px, [[113.75, 52.5]], rtol=0, atol=1e-12)
     # OpenGL window depth = f (d - n) / (d (f - n)) at eye distance d = 1000
     assert depth[0] == pytest.approx(1e6 * 990.0 / (1000.0 * (1e6 - 10.0)), rel=1e-12)
@@ -50,7 +52,8 @@ def test_project_orthographic_uses_scale_at_near():
 
 def test_depth_limits_and_inverse():
     camera = Camera(near=10.0, far=5000.0)
-    np.testing.assert_allclose(cam.ndc_depth(np.array([10.0, 5000.0]), camera), [0.0, 1.0], atol=1e-12)
+    limits = cam.ndc_depth(np.array([10.0, 5000.0]), camera)
+    np.testing.assert_allclose(limits, [0.0, 1.0], atol=1e-12)
     d = np.array([12.0, 100.0, 999.0, 4000.0])
     np.testing.assert_allclose(cam.eye_depth(cam.ndc_depth(d, camera), camera), d, rtol=1e-9)
     assert np.all(np.diff(cam.ndc_depth(d, camera)) > 0)

@@ -16,7 +16,9 @@ from albedo_model import camera as cam  # noqa: E402
 from albedo_model import embree_refit, raycast  # noqa: E402
 from albedo_model.scene_slots import SceneSlots  # noqa: E402
 from albedo_model.errors import InputError  # noqa: E402
-from albedo_model.params import Camera, ImageSize, Pose, View, default_square, fit_to_image_size  # noqa: E402
+from albedo_model.params import (  # noqa: E402
+    Camera, ImageSize, Pose, View, default_square, fit_to_image_size,
+)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from zbuffer_reference import render_zbuffer  # noqa: E402

@@ -6,7 +6,8 @@ formula, triangles rasterised one by one at integer pixel centres (pixel (i, j)
 is the point (i, j)), edge-function inside tests that include the edges,
 perspective-correct barycentrics, nearest eye depth wins, back faces culled when
 ``n . (a - eye) > 0`` (orthographic: ``n . (0, 0, -1) > 0``, the view
-direction, where scalismo would still use the eye position). Slow (Python loop over triangles); for small meshes only.
+direction, where scalismo would still use the eye position). Slow (Python loop
+over triangles); for small meshes only.
 """
 
 from __future__ import annotations
