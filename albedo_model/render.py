@@ -1,33 +1,37 @@
 """Rendering a model instance: cached stages driven by the blocks a change touches.
 
 A :class:`Renderer` owns the host resources of one model (two Embree scenes for
-double buffering, device copies of the triangles) and turns scene parameters
-into a :class:`RenderState`: the per-vertex instance (positions, normals,
-diffuse and specular albedo) and the ray-cast buffers of every pixel. The state
-is immutable; :meth:`Renderer.update` returns a new one and recomputes only the
-stages whose inputs a change touched (``STAGE_DEPS``):
+double buffering, device copies of the triangles, transposed bases for block
+updates) and turns scene parameters into a :class:`RenderState`: the per-vertex
+instance, the ray-cast buffers of every pixel, and the per-pixel attributes the
+shader reads (world normals, view directions, diffuse and specular albedo). The
+state is immutable; :meth:`Renderer.update` returns a new one and recomputes
+only the stages whose inputs a change touched (``STAGE_DEPS``):
 
 ==========================  =================================================
 touched                      recomputed
 ==========================  =================================================
 SHAPE, EXPRESSION            changed block of the instance, normals, BVH refit
-                             (into the spare scene), ray cast
-POSE, CAMERA                 rays (transformed into the model frame), ray cast
-ALBEDO                       changed block of the albedo instance
+                             (into the spare scene), ray cast, pixel attributes
+POSE, CAMERA                 rays (transformed into the model frame), ray cast,
+                             pixel attributes
+ALBEDO                       changed block of the albedo instance, pixel albedo
 LIGHT, COLOR, SPEC. EXP.     nothing before shading
 ==========================  =================================================
 
-Shading (:mod:`albedo_model.shading`) always runs, compiled for the scene's
-effect set. A geometry change is cast with the spare scene; the sampler calls
-:meth:`Renderer.accept` or :meth:`Renderer.reject`, so a rejected proposal
-costs nothing to undo.
+Shading then runs over the cached pixel attributes only
+(:func:`albedo_model.shading.shade_pixels`, compiled for the scene's effect set),
+so a light step is a single pass over the pixels. :meth:`Renderer.compose` fuses
+that pass with a caller's function (a likelihood) in one ``jit``. A geometry
+change is cast with the spare scene; the sampler calls :meth:`Renderer.accept`
+or :meth:`Renderer.reject`, so a rejected proposal costs nothing to undo.
 
 This module imports only ``albedo_model`` modules.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Callable
 
 import jax.numpy as jnp
 import numpy as np
@@ -37,12 +41,18 @@ from albedo_model.camera import (
     towards_camera_model,
 )
 from albedo_model.errors import InputError
+from albedo_model.instance_updates import InstanceUpdater, coefficients_for
+from albedo_model.interpolation import needs_view
 from albedo_model.model import MorphableModel
-from albedo_model.normals_jax import vertex_normals_jax
 from albedo_model.params import Block, RenderParameter
 from albedo_model.raycast import RayHits, visible_points
+from albedo_model.render_state import (
+    Rendered, RenderState, albedo_stage, fused_stage, normals_stage, pixels_satisfy,
+    pixels_stage, shade_stage,
+)
 from albedo_model.scene_slots import SceneSlots
-from albedo_model.shading import Effects, Shaded, effects_for, shade, shading_params, to_hwc
+from albedo_model.shading import Effects, Shaded, effects_for, pack_shading_params, to_hwc
+from albedo_model.shadows import directional_visibility
 
 __all__ = ["Renderer", "RenderState", "Rendered", "STAGE_DEPS", "render"]
 
@@ -51,68 +61,8 @@ STAGE_DEPS = {
     "geometry": Block.SHAPE | Block.EXPRESSION,
     "raycast": Block.SHAPE | Block.EXPRESSION | Block.POSE | Block.CAMERA,
     "albedo": Block.ALBEDO,
+    "shading": Block.POSE | Block.LIGHT | Block.COLOR | Block.SPECULAR_EXPONENT,
 }
-
-
-class RenderState(NamedTuple):
-    """Everything cached for one set of scene parameters (host and device arrays).
-
-    Attributes
-    ----------
-    params : RenderParameter
-    shape : (3n,) float64, host
-        Shape + expression instance, interleaved (model frame, mm).
-    diffuse, specular : (3n,) float64 host arrays (specular None without a part)
-    vertices, normals : (n, 3) float32 device arrays, model frame
-    diffuse_dev, specular_dev : (n, 3) float32 device arrays
-    hits : RayHits
-        Host ray-cast buffers of every pixel (row-major).
-    prim_id : (P,) int32 device, bary : (P, 2) float32 device
-    geometry_pending : bool
-        True when the state's geometry lives in the renderer's spare scene
-        (a proposal not yet accepted).
-    """
-
-    params: RenderParameter
-    shape: np.ndarray
-    diffuse: np.ndarray
-    specular: np.ndarray | None
-    vertices: object
-    normals: object
-    diffuse_dev: object
-    specular_dev: object
-    hits: RayHits
-    prim_id: object
-    bary: object
-    geometry_pending: bool = False
-
-
-class Rendered(NamedTuple):
-    """A rendered image.
-
-    Attributes
-    ----------
-    image : (H, W, 3) float32, linear or gamma-encoded as requested
-    mask : (H, W) bool, True on the face (alpha 1)
-    state : RenderState, the buffers behind the image
-    """
-
-    image: np.ndarray
-    mask: np.ndarray
-    state: RenderState
-
-
-def _coefficients(part, c: np.ndarray, name: str, source: str = "parameters") -> np.ndarray:
-    c = np.asarray(c, np.float64).reshape(-1)
-    if part is None:
-        if np.any(c != 0):
-            raise InputError(f"{source} give {name} coefficients but the model has no {name} part")
-        return c[:0]
-    if c.shape[0] > part.rank:
-        raise InputError(
-            f"{source} give {c.shape[0]} {name} coefficients, the model's {name} part has rank {part.rank}"
-        )
-    return c
 
 
 class Renderer:
@@ -150,6 +100,7 @@ class Renderer:
         self._slots: SceneSlots | None = None
         self._ray_buffers: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         self._dirs_cache: dict = {}
+        self._updater = InstanceUpdater()
 
     # -- effects ------------------------------------------------------------
     def effects(self, params: RenderParameter) -> Effects:
@@ -158,23 +109,40 @@ class Renderer:
                            directional_specular_map=self.directional_specular_map)
 
     # -- stages ---------------------------------------------------------------
-    def _shape(self, params: RenderParameter) -> np.ndarray:
+    def _shape_terms(self, params: RenderParameter) -> list:
         m = self.model
-        flat = m.shape.instance(_coefficients(m.shape, params.momo.shape, "shape"))
-        expr = _coefficients(m.expression, params.momo.expression, "expression")
+        terms = [((m.shape,), coefficients_for(m.shape, params.momo.shape, "shape"))]
+        expr = coefficients_for(m.expression, params.momo.expression, "expression")
         if m.expression is not None:
-            flat = flat + m.expression.instance(expr)
-        return flat
+            terms.append(((m.expression,), expr))
+        return terms
 
-    def _albedo(self, params: RenderParameter) -> tuple[np.ndarray, np.ndarray | None]:
+    def _albedo_instance(self, params: RenderParameter) -> np.ndarray:
+        """(1, 3n) diffuse or (2, 3n) diffuse + specular float32 host instance."""
         m = self.model
-        c = _coefficients(m.diffuse, params.momo.color, "colour")
-        diffuse = m.diffuse.instance(c)
-        specular = None
-        if self.specular:
-            cs = c[: m.specular.rank] if m.shared_albedo else None
-            specular = m.specular.instance(cs)
-        return diffuse, specular
+        c = coefficients_for(m.diffuse, params.momo.color, "colour")
+        if not self.specular:
+            return self._updater.instance([((m.diffuse,), c)]).reshape(1, -1)
+        if m.shared_albedo:
+            return self._updater.instance([((m.diffuse, m.specular), c)]).reshape(2, -1)
+        # independent specular albedo has no coefficients in a scene: its mean
+        return np.stack([self._updater.instance([((m.diffuse,), c)]),
+                         m.specular.mean.astype(np.float32)])
+
+    def _albedo_update(self, state: RenderState, params: RenderParameter):
+        """(albedo, count): ``state.albedo`` itself when no coefficient changed."""
+        m = self.model
+        old = coefficients_for(m.diffuse, state.params.momo.color, "colour")
+        new = coefficients_for(m.diffuse, params.momo.color, "colour")
+        shared = self.specular and m.shared_albedo
+        parts = (m.diffuse, m.specular) if shared else (m.diffuse,)
+        base = state.albedo.reshape(-1) if shared else state.albedo[0]
+        flat, count = self._updater.update([(parts, old, new)], base, state.updates[1])
+        if flat is base:
+            return state.albedo, count
+        if shared or len(state.albedo) == 1:
+            return flat.reshape(len(state.albedo), -1), count
+        return np.stack([flat, state.albedo[1]]), count
 
     def _cast(self, params: RenderParameter, caster) -> RayHits:
         size = params.image_size
@@ -187,16 +155,25 @@ class Renderer:
         tfar = float(params.camera.far - params.camera.near)
         return caster.cast(origins, directions, tfar=tfar, image_shape=(key[1], key[0]))
 
-    def _geometry(self, shape: np.ndarray):
-        v32 = np.ascontiguousarray(shape.reshape(-1, 3), np.float32)
-        vertices = jnp.asarray(v32)
-        return v32, vertices, vertex_normals_jax(vertices, self._triangles)
+    def _pixels(self, params: RenderParameter, effects: Effects, normals, albedo_dev, hits):
+        p = params
+        rotation = euler_rotation(p.pose.roll, p.pose.yaw, p.pose.pitch).astype(np.float32)
+        ray_dirs = self._world_ray_dirs(p) if needs_view(effects) else None
+        return pixels_stage(effects)(self._triangles, normals, albedo_dev, hits.prim_id,
+                                     hits.bary, ray_dirs, rotation)
+
+    def _shading(self, params: RenderParameter) -> np.ndarray:
+        p = params
+        rotation = euler_rotation(p.pose.roll, p.pose.yaw, p.pose.pitch)
+        return pack_shading_params(p, rotation, background=self.background)
 
     # -- public API -------------------------------------------------------------
     def init_state(self, params: RenderParameter) -> RenderState:
         """Compute every stage for ``params`` and make its geometry the accepted one."""
-        shape = self._shape(params)
-        v32, vertices, normals = self._geometry(shape)
+        shape = self._updater.instance(self._shape_terms(params))
+        v32 = shape.reshape(-1, 3)
+        vertices = jnp.asarray(v32)
+        normals = normals_stage(vertices, self._triangles)
         if self._slots is None:
             kw = {} if self._threads is None else {"threads": self._threads}
             self._slots = SceneSlots(v32, self.model.triangles, **kw)
@@ -204,12 +181,14 @@ class Renderer:
             self._slots.reject()
             self._slots.current.update_vertices(v32)
         hits = self._cast(params, self._slots.current)
-        diffuse, specular = self._albedo(params)
+        albedo = self._albedo_instance(params)
+        albedo_dev = jnp.asarray(albedo)
+        effects = self.effects(params)
+        px_hits, geometry, px_albedo = self._pixels(params, effects, normals, albedo_dev, hits)
         return RenderState(
-            params, shape, diffuse, specular, vertices, normals,
-            jnp.asarray(diffuse.reshape(-1, 3), jnp.float32),
-            None if specular is None else jnp.asarray(specular.reshape(-1, 3), jnp.float32),
-            hits, jnp.asarray(hits.prim_id), jnp.asarray(hits.bary),
+            params, shape, albedo, albedo[0], albedo[1] if self.specular else None, vertices,
+            normals, albedo_dev, hits, hits.prim_id, hits.bary, False, px_hits, geometry,
+            px_albedo, effects, self._shading(params),
         )
 
     def update(self, state: RenderState, params: RenderParameter, touched: Block) -> RenderState:
@@ -232,41 +211,43 @@ class Renderer:
         """
         if self._slots is None:
             raise InputError("Renderer.update needs a state from init_state first")
-        m = self.model
-        shape, vertices, normals = state.shape, state.vertices, state.normals
-        pending = False
+        s = state
+        n_shape, n_albedo = s.updates
+        out = {}
         caster = self._slots.current
         if touched & STAGE_DEPS["geometry"]:
-            old, new = state.params.momo, params.momo
-            shape = m.shape.update_instance(
-                shape, _coefficients(m.shape, old.shape, "shape"),
-                _coefficients(m.shape, new.shape, "shape"),
-            )
-            if m.expression is not None:
-                shape = m.expression.update_instance(
-                    shape, _coefficients(m.expression, old.expression, "expression"),
-                    _coefficients(m.expression, new.expression, "expression"),
-                )
-            v32, vertices, normals = self._geometry(shape)
+            old, new = self._shape_terms(s.params), self._shape_terms(params)
+            terms = [(parts, a, b) for (parts, a), (_, b) in zip(old, new)]
+            shape, n_shape = self._updater.update(terms, s.shape, n_shape)
+            v32 = shape.reshape(-1, 3)
+            vertices = jnp.asarray(v32)
+            out.update(shape=shape, vertices=vertices, geometry_pending=True,
+                       normals=normals_stage(vertices, self._triangles))  # runs while Embree casts
             caster = self._slots.propose(v32)
-            pending = True
-        hits, prim_id, bary = state.hits, state.prim_id, state.bary
+        if touched & STAGE_DEPS["albedo"]:
+            albedo, n_albedo = self._albedo_update(s, params)
+            if albedo is not s.albedo:
+                out.update(albedo=albedo, diffuse=albedo[0], albedo_dev=jnp.asarray(albedo),
+                           specular=albedo[1] if len(albedo) > 1 else None)
+        s = s._replace(params=params, updates=(n_shape, n_albedo), **out)
+        if touched & (Block.LIGHT | Block.COLOR):
+            s = s._replace(effects=self.effects(params))
+        if touched & STAGE_DEPS["shading"]:
+            s = s._replace(shading=self._shading(params))
+        effects = s.effects
         if touched & STAGE_DEPS["raycast"]:
             hits = self._cast(params, caster)
-            prim_id, bary = jnp.asarray(hits.prim_id), jnp.asarray(hits.bary)
-        diffuse, specular = state.diffuse, state.specular
-        diffuse_dev, specular_dev = state.diffuse_dev, state.specular_dev
-        if touched & STAGE_DEPS["albedo"]:
-            old = _coefficients(m.diffuse, state.params.momo.color, "colour")
-            new = _coefficients(m.diffuse, params.momo.color, "colour")
-            diffuse = m.diffuse.update_instance(diffuse, old, new)
-            diffuse_dev = jnp.asarray(diffuse.reshape(-1, 3), jnp.float32)
-            if specular is not None and m.shared_albedo:
-                k = m.specular.rank
-                specular = m.specular.update_instance(specular, old[:k], new[:k])
-                specular_dev = jnp.asarray(specular.reshape(-1, 3), jnp.float32)
-        return RenderState(params, shape, diffuse, specular, vertices, normals, diffuse_dev,
-                           specular_dev, hits, prim_id, bary, pending)
+            px_hits, geometry, px_albedo = self._pixels(params, effects, s.normals, s.albedo_dev,
+                                                        hits)
+            s = s._replace(hits=hits, prim_id=hits.prim_id, bary=hits.bary, pixel_hits=px_hits,
+                           pixel_geometry=geometry, pixel_albedo=px_albedo)
+        elif not pixels_satisfy(s.pixel_geometry, s.pixel_albedo, effects):
+            px_hits, geometry, px_albedo = self._pixels(params, effects, s.normals, s.albedo_dev,
+                                                        s.hits)
+            s = s._replace(pixel_geometry=geometry, pixel_albedo=px_albedo)
+        elif "albedo_dev" in out:
+            s = s._replace(pixel_albedo=albedo_stage(effects)(s.pixel_hits, s.albedo_dev))
+        return s
 
     def accept(self, state: RenderState) -> RenderState:
         """Keep a proposed state: its geometry becomes the current scene."""
@@ -285,17 +266,65 @@ class Renderer:
         """True when geometry updates refit the BVH in place (else rebuild)."""
         return self._slots is not None and self._slots.current.refit_supported
 
-    def shade(self, state: RenderState, *, effects: Effects | None = None) -> Shaded:
-        """Shade the state's pixels (device arrays; see :func:`albedo_model.shading.shade`)."""
-        p = state.params
-        eff = self.effects(p) if effects is None else effects
-        rotation = euler_rotation(p.pose.roll, p.pose.yaw, p.pose.pitch)
-        sp = shading_params(p, rotation, background=self.background)
-        ray_dirs = self._world_ray_dirs(p) if (eff.specular or eff.directional) else None
+    def _shading_inputs(self, state: RenderState, effects: Effects | None):
+        eff = state.effects if effects is None else effects
+        geometry, albedo = state.pixel_geometry, state.pixel_albedo
+        if not pixels_satisfy(geometry, albedo, eff):
+            _, geometry, albedo = self._pixels(state.params, eff, state.normals,
+                                               state.albedo_dev, state.hits)
         shadow = self._shadow(state) if eff.shadows else None
-        return shade(eff, self._triangles, state.normals, state.diffuse_dev,
-                     state.specular_dev if (eff.specular or eff.directional_specular_map) else None,
-                     state.prim_id, state.bary, ray_dirs, sp, shadow)
+        return eff, (geometry, albedo, state.shading, shadow)
+
+    def shade(self, state: RenderState, *, effects: Effects | None = None) -> Shaded:
+        """Shade the state's cached pixels (device arrays; see :func:`albedo_model.shading.shade`).
+
+        Parameters
+        ----------
+        state : RenderState
+        effects : Effects, optional
+            Override the renderer's effect set (e.g. to compare effect costs).
+        """
+        eff, inputs = self._shading_inputs(state, effects)
+        return shade_stage(eff)(*inputs)
+
+    def compose(self, fn: Callable) -> Callable:
+        """Shading fused with ``fn`` in one ``jit``: ``g(state, *args) -> fn(rgb, mask, *args)``.
+
+        Parameters
+        ----------
+        fn : callable
+            A pure JAX function ``fn(rgb, mask, *args)`` of the shader output
+            (``rgb`` three (P,) float32 arrays, linear unless the renderer
+            gamma-encodes; ``mask`` (P,) bool) and of further arguments (arrays
+            or pytrees, e.g. a target image), typically a likelihood.
+
+        Returns
+        -------
+        callable
+            ``g(state, *args)``: shades ``state`` as :meth:`shade` does and applies
+            ``fn`` inside the same compiled function, returning ``fn``'s (device)
+            result. XLA fuses the per-pixel shading into ``fn``'s reductions, so
+            no image is written out. One compile per effect set and argument
+            structure: keep ``fn`` and the argument shapes fixed.
+
+        Examples
+        --------
+        >>> def sq_error(rgb, mask, target):
+        ...     sq = sum((rgb[c] - target[c]) ** 2 for c in range(3))
+        ...     return jnp.sum(jnp.where(mask, sq, 0.0))
+        >>> error = renderer.compose(sq_error)            # doctest: +SKIP
+        >>> value = float(error(state, target))           # doctest: +SKIP
+        """
+        compiled: dict[Effects, Callable] = {}
+
+        def composed(state: RenderState, *args):
+            eff, inputs = self._shading_inputs(state, None)
+            run = compiled.get(eff)
+            if run is None:
+                run = compiled[eff] = fused_stage(eff, fn)
+            return run(*inputs, *args)
+
+        return composed
 
     def image(self, state: RenderState) -> Rendered:
         """Shade and return host arrays ``(image (H, W, 3), mask (H, W))``."""
@@ -354,25 +383,11 @@ class Renderer:
             self._dirs_cache = {key: jnp.asarray(world)}
         return self._dirs_cache[key]
 
-    def _shadow(self, state: RenderState):
+    def _shadow(self, state: RenderState) -> np.ndarray:
         p = state.params
-        hits = state.hits
-        idx = np.flatnonzero(hits.prim_id >= 0)
-        shadow = np.ones(len(hits.prim_id), np.float32)
-        if idx.size == 0:
-            return jnp.asarray(shadow)
-        v = state.shape.reshape(-1, 3)
-        tri = self.model.triangles[hits.prim_id[idx]]
-        u, w = hits.bary[idx, :1], hits.bary[idx, 1:]
-        pts = (1.0 - u - w) * v[tri[:, 0]] + u * v[tri[:, 1]] + w * v[tri[:, 2]]
-        r = euler_rotation(p.pose.roll, p.pose.yaw, p.pose.pitch)
-        l_world = np.asarray(p.directional_light.direction, np.float64)
-        l_model = r.T @ (l_world / np.linalg.norm(l_world))
         caster = self._slots.candidate if state.geometry_pending else self._slots.current
-        start = (pts + 1e-4 * caster.scale * l_model).astype(np.float32)
-        occ = caster.occluded(start, l_model.reshape(1, 3).astype(np.float32))
-        shadow[idx[occ]] = 0.0
-        return jnp.asarray(shadow)
+        return directional_visibility(state.hits, state.shape.reshape(-1, 3), self.model.triangles,
+                                      p.pose, p.directional_light.direction, caster)
 
 
 def render(model: MorphableModel, params: RenderParameter, *, specular: bool = True,

@@ -7,14 +7,29 @@ background. Nothing here knows about Embree or the camera model: the inputs are
 the ray caster's per-pixel ``prim_id``/``bary`` and the world-frame ray
 directions of the pixels.
 
-The shader is compiled once per :class:`Effects` (a hashable set of switches):
-an effect that is off is not traced, so it costs nothing (``tests`` check the
+Two layers:
+
+* :func:`shade_pixels` shades interpolated per-pixel attributes
+  (:class:`~albedo_model.interpolation.PixelGeometry`,
+  :class:`~albedo_model.interpolation.PixelAlbedo`); a renderer caches those, so
+  a light or colour change costs one pass over the pixels without gathers.
+* :func:`shade` (and :func:`shader_function`, :func:`build_shader`) does the
+  interpolation too, from per-vertex arrays and hits: the composition
+  ``shade_pixels(interpolate_geometry(...), interpolate_albedo(...))``.
+
+Both are specialised per :class:`Effects` (a hashable set of switches): an
+effect that is off is not traced, so it costs nothing (``tests`` check the
 jaxpr). All per-pixel arrays are full-image sized (P = H W pixels, row-major)
 with a hit mask, so the foreground size never changes a shape; the code works on
 separate (P,) arrays per component (structure of arrays), which XLA-CPU runs
 4-5x faster than (P, 3) code (``performance-notes.md`` §6).
 
-This module imports only :mod:`albedo_model.params` and :mod:`albedo_model.sh`.
+Scene scalars travel as a :class:`ShadingParams` pytree
+(:mod:`albedo_model.shading_scalars`, also packed into one vector).
+
+This module imports only :mod:`albedo_model.params`, :mod:`albedo_model.sh`,
+:mod:`albedo_model.shading_effects`, :mod:`albedo_model.shading_scalars` and
+:mod:`albedo_model.interpolation`.
 """
 
 from __future__ import annotations
@@ -27,84 +42,25 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from albedo_model.params import RenderParameter
+from albedo_model.interpolation import (
+    PixelAlbedo, PixelGeometry, interpolate_albedo, interpolate_geometry, normalise, pixel_hits,
+)
 from albedo_model.sh import LAMBERT_FACTORS, MAX_SH_COEFFICIENTS, SH_NORMALISATION
+from albedo_model.shading_effects import Effects, effects_for
+from albedo_model.shading_scalars import (
+    PACKED_SIZE, ShadingParams, pack_shading_params, shading_params, unpack_shading_params,
+)
 
 __all__ = [
-    "Effects", "ShadingParams", "Shaded", "GAMMA", "effects_for", "shading_params",
+    "Effects", "ShadingParams", "Shaded", "GAMMA", "PACKED_SIZE", "effects_for", "shading_params",
+    "pack_shading_params", "unpack_shading_params", "shade_pixels", "pixel_shader_function",
     "shader_function", "build_shader", "shade", "encode_gamma", "to_hwc",
 ]
 
 GAMMA = 2.2
 _GAMMA_EPS = 1e-8
 _POW_EPS = 1e-30
-_NORM_EPS = 1e-30
 _LUMA = (0.3, 0.59, 0.11)
-
-
-class Effects(NamedTuple):
-    """Which effects a scene's image formation computes (hashable; one compiled shader each).
-
-    Attributes
-    ----------
-    sh_coefficients : int
-        Number of SH coefficients used, 0..9 (``min(K, 9)``); 0 turns SH light off.
-    specular : bool
-        AlbedoMM specular term (needs per-vertex specular albedo).
-    directional : bool
-        scalismo's directional light (Lambert + Blinn-Phong), added to the SH light.
-    shadows : bool
-        Multiply the directional diffuse and specular terms by a per-pixel
-        visibility (needs ``directional``).
-    color_transform : bool
-        Apply gain / contrast / offset (off = identity).
-    gamma : bool
-        Encode the clamped image with ``x^(1/2.2)`` (off = linear output, as fitted).
-    clamp : bool
-        Clamp ``D + S`` to [0, 1] (AlbedoMM does; the plain scalismo renderer does not).
-    directional_specular_map : bool
-        Scale the directional light's Blinn-Phong term by the per-vertex specular
-        albedo (the paper's appendix renders; needs ``directional``).
-    """
-
-    sh_coefficients: int = 9
-    specular: bool = False
-    directional: bool = False
-    shadows: bool = False
-    color_transform: bool = False
-    gamma: bool = False
-    clamp: bool = True
-    directional_specular_map: bool = False
-
-
-class ShadingParams(NamedTuple):
-    """Scene scalars of the shading, as a pytree of float32 arrays (traced, never static).
-
-    Attributes
-    ----------
-    rotation : (3, 3) world-from-object rotation of the pose (normals are rotated
-        and renormalised, so a positive scale factor is harmless).
-    sh : (9, 3) radiance map in scalismo's order, zero-padded to 9 rows (world frame).
-    specular_exponent : () AlbedoMM exponent e.
-    light_direction : (3,) direction towards the directional light (world frame).
-    light_ambient, light_diffuse, light_specular : (3,) RGB.
-    light_shininess : () Blinn-Phong exponent.
-    color_gain : (3,), color_contrast : (), color_offset : (3,)
-    background : (3,) RGB written where no surface is hit (output space).
-    """
-
-    rotation: jax.Array
-    sh: jax.Array
-    specular_exponent: jax.Array
-    light_direction: jax.Array
-    light_ambient: jax.Array
-    light_diffuse: jax.Array
-    light_specular: jax.Array
-    light_shininess: jax.Array
-    color_gain: jax.Array
-    color_contrast: jax.Array
-    color_offset: jax.Array
-    background: jax.Array
 
 
 class Shaded(NamedTuple):
@@ -121,78 +77,6 @@ class Shaded(NamedTuple):
     mask: jax.Array
 
 
-def effects_for(
-    params: RenderParameter,
-    has_specular: bool,
-    *,
-    specular: bool = True,
-    shadows: bool = False,
-    gamma: bool = False,
-    clamp: bool = True,
-    directional_specular_map: bool = False,
-) -> Effects:
-    """The effect set a scene needs.
-
-    Specular is on iff the model has a specular part, the caller asks for it and
-    the SH light is non-empty (AlbedoMM's specular reuses the SH light);
-    directional iff ``params.directional_light.enabled``; shadows only with a
-    directional light; colour transform iff it is not the identity;
-    ``directional_specular_map`` only with a directional light and a specular part.
-
-    Notes
-    -----
-    scalismo uses the directional light only when the SH light is empty; here both
-    are summed when both are set (the default directional light is off).
-    """
-    k = min(int(params.environment_map.coefficients.shape[0]), MAX_SH_COEFFICIENTS)
-    directional = bool(params.directional_light.enabled)
-    return Effects(
-        sh_coefficients=k,
-        specular=bool(has_specular and specular and k > 0),
-        directional=directional,
-        shadows=bool(shadows and directional),
-        color_transform=not params.color_transform.is_identity,
-        gamma=bool(gamma),
-        clamp=bool(clamp),
-        directional_specular_map=bool(directional_specular_map and directional and has_specular),
-    )
-
-
-def shading_params(
-    params: RenderParameter, rotation: np.ndarray, *, background=(0.0, 0.0, 0.0)
-) -> ShadingParams:
-    """Device-resident :class:`ShadingParams` from a scene.
-
-    Parameters
-    ----------
-    params : RenderParameter
-    rotation : (3, 3) float array
-        World-from-object rotation of ``params.pose`` (``Rz(roll) Ry(yaw) Rx(pitch)``).
-    background : (3,) float
-        Output colour of pixels without a hit.
-    """
-    sh = np.zeros((MAX_SH_COEFFICIENTS, 3), np.float32)
-    coeffs = np.asarray(params.environment_map.coefficients, np.float64)
-    if coeffs.ndim != 2 or coeffs.shape[1] != 3:
-        raise ValueError(f"SH coefficients must have shape (K, 3), got {coeffs.shape}")
-    k = min(coeffs.shape[0], MAX_SH_COEFFICIENTS)
-    sh[:k] = coeffs[:k]
-    dl = params.directional_light
-    ct = params.color_transform
-
-    def f32(x):
-        return jnp.asarray(np.asarray(x, np.float32))
-
-    return ShadingParams(
-        rotation=f32(np.asarray(rotation).reshape(3, 3)), sh=f32(sh),
-        specular_exponent=f32(params.specular_exponent),
-        light_direction=f32(dl.direction), light_ambient=f32(dl.ambient),
-        light_diffuse=f32(dl.diffuse), light_specular=f32(dl.specular),
-        light_shininess=f32(dl.shininess), color_gain=f32(ct.gain),
-        color_contrast=f32(ct.contrast), color_offset=f32(ct.offset), background=f32(background),
-    )
-
-
 def encode_gamma(x: jax.Array) -> jax.Array:
     """Pure-power gamma ``x^(1/2.2)`` as ``exp(log(max(x, eps)) / 2.2)``; 0 for x <= eps.
 
@@ -206,11 +90,6 @@ def _safe_pow(x: jax.Array, e: jax.Array) -> jax.Array:
     """``max(x, 0)^e`` for e > 0 via exp/log; 0 (and zero gradient) where x <= 0."""
     safe = jnp.maximum(x, _POW_EPS)
     return jnp.where(x > _POW_EPS, jnp.exp(e * jnp.log(safe)), 0.0)
-
-
-def _normalise(x, y, z):
-    inv = jax.lax.rsqrt(jnp.maximum(x * x + y * y + z * z, _NORM_EPS))
-    return x * inv, y * inv, z * inv
 
 
 def _sh_lambert(weights: jax.Array, k: int, x, y, z) -> list:
@@ -231,26 +110,44 @@ def _luma(c):
     return _LUMA[0] * c[0] + _LUMA[1] * c[1] + _LUMA[2] * c[2]
 
 
-def _shade(
-    effects: Effects, triangles, normals, diffuse, specular, prim_id, bary, ray_dirs,
-    params: ShadingParams, shadow,
-) -> Shaded:
+def _check(effects: Effects) -> None:
+    if not 0 <= effects.sh_coefficients <= MAX_SH_COEFFICIENTS:
+        raise ValueError(f"sh_coefficients must be in 0..9, got {effects.sh_coefficients}")
+    if effects.shadows and not effects.directional:
+        raise ValueError("shadows need a directional light")
+    if effects.directional_specular_map and not effects.directional:
+        raise ValueError("directional_specular_map needs a directional light")
+    if effects.specular and effects.sh_coefficients == 0:
+        raise ValueError("the AlbedoMM specular term needs SH light")
+
+
+def shade_pixels(effects: Effects, geometry: PixelGeometry, albedo: PixelAlbedo,
+                 params: ShadingParams, shadow=None) -> Shaded:
+    """Shade interpolated per-pixel attributes (the maths of :func:`shade`, without gathers).
+
+    Parameters
+    ----------
+    effects : Effects
+        Static switches; an effect that is off is not traced.
+    geometry : PixelGeometry
+        From :func:`~albedo_model.interpolation.interpolate_geometry` with the same
+        effects (``view`` needed for specular or directional light).
+    albedo : PixelAlbedo
+        From :func:`~albedo_model.interpolation.interpolate_albedo` with the same effects.
+    params : ShadingParams
+        ``rotation`` is not read (the normals are already in the world frame).
+    shadow : (P,) float32 or None
+        Visibility of the directional light; only read with ``effects.shadows``.
+
+    Returns
+    -------
+    Shaded
+    """
+    _check(effects)
     k = effects.sh_coefficients
-    hit = prim_id >= 0
-    pid = jnp.maximum(prim_id, 0)
-    corner = [triangles[:, j][pid] for j in range(3)]
-    u = jnp.where(hit, bary[:, 0], 0.0)
-    v = jnp.where(hit, bary[:, 1], 0.0)
-    w = 1.0 - u - v
-
-    def interp(attr):  # (n, 3) per vertex -> three (P,) arrays
-        cols = [attr[:, c] for c in range(3)]
-        return [w * a[corner[0]] + u * a[corner[1]] + v * a[corner[2]] for a in cols]
-
-    nox, noy, noz = interp(normals)
-    r = params.rotation
-    nx, ny, nz = _normalise(*(r[i, 0] * nox + r[i, 1] * noy + r[i, 2] * noz for i in range(3)))
-    rho = interp(diffuse)
+    hit = geometry.mask
+    nx, ny, nz = geometry.normal
+    rho = albedo.diffuse
 
     if k > 0:
         weights = jnp.asarray(LAMBERT_FACTORS[:k] * SH_NORMALISATION[:k], jnp.float32)[:, None]
@@ -258,25 +155,25 @@ def _shade(
         irr = _sh_lambert(weights, k, nx, ny, nz)
         dif = [rho[c] * irr[c] for c in range(3)]
     else:
-        dif = [jnp.zeros_like(u)] * 3
+        dif = [jnp.zeros_like(nx)] * 3
 
     if effects.specular or effects.directional:
-        vx, vy, vz = _normalise(-ray_dirs[:, 0], -ray_dirs[:, 1], -ray_dirs[:, 2])
+        vx, vy, vz = geometry.view
 
     if effects.directional:
-        lx, ly, lz = _normalise(*(params.light_direction[i] for i in range(3)))
+        lx, ly, lz = normalise(*(params.light_direction[i] for i in range(3)))
         ndl = jnp.maximum(nx * lx + ny * ly + nz * lz, 0.0)
-        hx, hy, hz = _normalise(vx + lx, vy + ly, vz + lz)
+        hx, hy, hz = normalise(vx + lx, vy + ly, vz + lz)
         blinn = _safe_pow(nx * hx + ny * hy + nz * hz, params.light_shininess)
         if effects.shadows:
             ndl = ndl * shadow
             blinn = blinn * shadow
         spec_dir = [params.light_specular[c] * blinn for c in range(3)]
         if effects.directional_specular_map:
-            s_map = interp(specular)
-            spec_dir = [spec_dir[c] * s_map[c] for c in range(3)]
+            spec_dir = [spec_dir[c] * albedo.specular[c] for c in range(3)]
         dif = [
-            dif[c] + rho[c] * (params.light_ambient[c] + params.light_diffuse[c] * ndl) + spec_dir[c]
+            dif[c] + rho[c] * (params.light_ambient[c] + params.light_diffuse[c] * ndl)
+            + spec_dir[c]
             for c in range(3)
         ]
 
@@ -284,10 +181,10 @@ def _shade(
     if effects.specular:
         vn = vx * nx + vy * ny + vz * nz
         # AlbedoMM's "reflection" 2n - (v.n) v (not the mirror direction 2(v.n)n - v).
-        rx, ry, rz = _normalise(2.0 * nx - vn * vx, 2.0 * ny - vn * vy, 2.0 * nz - vn * vz)
+        rx, ry, rz = normalise(2.0 * nx - vn * vx, 2.0 * ny - vn * vy, 2.0 * nz - vn * vz)
         lobe = _safe_pow(vn, params.specular_exponent)
         spec_irr = _sh_lambert(weights, k, rx, ry, rz)
-        s_alb = interp(specular)
+        s_alb = albedo.specular
         total = [dif[c] + lobe * s_alb[c] * spec_irr[c] for c in range(3)]
 
     if effects.color_transform:
@@ -310,6 +207,25 @@ def _shade(
     return Shaded(rgb=rgb, mask=hit)
 
 
+def _shade(
+    effects: Effects, triangles, normals, diffuse, specular, prim_id, bary, ray_dirs,
+    params: ShadingParams, shadow,
+) -> Shaded:
+    hits = pixel_hits(triangles, prim_id, bary)
+    geometry = interpolate_geometry(effects, hits, normals, ray_dirs, params.rotation)
+    albedo = interpolate_albedo(effects, hits, diffuse, specular)
+    return shade_pixels(effects, geometry, albedo, params, shadow)
+
+
+def pixel_shader_function(effects: Effects) -> Callable[..., Shaded]:
+    """The pure (un-jitted) :func:`shade_pixels` for one effect set, to compose inside a ``jit``.
+
+    Returns ``f(geometry, albedo, params, shadow) -> Shaded``; validates ``effects``.
+    """
+    _check(effects)
+    return functools.partial(shade_pixels, effects)
+
+
 def shader_function(effects: Effects) -> Callable[..., Shaded]:
     """The pure (un-jitted) shader for one effect set, to compose inside a larger ``jit``.
 
@@ -318,18 +234,11 @@ def shader_function(effects: Effects) -> Callable[..., Shaded]:
     effects on this halves the number of kernels. Arguments as :func:`shade`
     without ``effects``.
     """
-    if not 0 <= effects.sh_coefficients <= MAX_SH_COEFFICIENTS:
-        raise ValueError(f"sh_coefficients must be in 0..9, got {effects.sh_coefficients}")
-    if effects.shadows and not effects.directional:
-        raise ValueError("shadows need a directional light")
-    if effects.directional_specular_map and not effects.directional:
-        raise ValueError("directional_specular_map needs a directional light")
-    if effects.specular and effects.sh_coefficients == 0:
-        raise ValueError("the AlbedoMM specular term needs SH light")
+    _check(effects)
     return functools.partial(_shade, effects)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def build_shader(effects: Effects) -> Callable[..., Shaded]:
     """The jitted shader for one effect set (cached; one compile per input shape).
 

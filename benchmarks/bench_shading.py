@@ -24,7 +24,10 @@ import numpy as np
 
 from albedo_model.model import vertex_normals
 from albedo_model.params import ColorTransform, DirectionalLight, SHLight, default_square
-from albedo_model.shading import Effects, build_shader, shader_function, shading_params
+from albedo_model.interpolation import interpolate_albedo, interpolate_geometry, pixel_hits
+from albedo_model.shading import (
+    Effects, build_shader, pixel_shader_function, shader_function, shading_params,
+)
 from albedo_model.shading_naive import shade_naive
 
 
@@ -150,6 +153,22 @@ def main(argv=None) -> int:
     for name in cases:
         med, low = fused_timing[name]
         print(f"{name:42s} {med:9.3f} {low:7.3f} {fused_compile[name]:10.0f}")
+
+    # What a light / colour step costs with the renderer's cached pixel attributes:
+    # shading from interpolated (P,) arrays, no gathers.
+    hits = pixel_hits(*(inputs[i] for i in (0, 4, 5)))
+    full = Effects(specular=True, directional=True, directional_specular_map=True)
+    geometry = interpolate_geometry(full, hits, inputs[1], inputs[6], sp.rotation)
+    albedo = interpolate_albedo(full, hits, inputs[2], inputs[3])
+    pixel_args = [geometry, albedo, sp, inputs[8]]
+    pixel = {name: jax.jit(pixel_shader_function(eff)) for name, eff in cases.items()}
+    pixel_compile = {name: _compile_ms(fn, pixel_args) for name, fn in pixel.items()}
+    pixel_timing = _interleaved_ms(pixel, pixel_args, args.reps)
+    print(f"{'cached pixel attributes (light step)':42s} {'median ms':>9s} {'min ms':>7s}"
+          f" {'compile ms':>10s}")
+    for name in cases:
+        med, low = pixel_timing[name]
+        print(f"{name:42s} {med:9.3f} {low:7.3f} {pixel_compile[name]:10.0f}")
     return 0
 
 

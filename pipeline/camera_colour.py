@@ -33,7 +33,7 @@ from albedo_model.errors import InputError
 
 __all__ = [
     "DEFAULT_CAMERA", "DEFAULT_ILLUMINANT", "CameraColour", "camera_colour",
-    "camera_sensitivities", "cie_cmfs", "d65_white_xyz", "illuminant_spd",
+    "camera_colour_from_spectra", "camera_sensitivities", "cie_cmfs", "d65_white_xyz", "illuminant_spd",
     "raw_to_xyz_matrix", "reference_linear_srgb", "spectral_grid", "srgb_matrix",
     "training_reflectances", "white_balance_matrix",
 ]
@@ -326,4 +326,41 @@ def camera_colour(
         t_wb=_readonly(white_balance_matrix(c, e)),
         t_raw2xyz=_readonly(raw_to_xyz_matrix(c, e, method=method, grid=grid)),
         t_xyz2rgb=srgb_matrix(), camera=camera, illuminant_name=illuminant, method=method,
+    )
+
+
+def camera_colour_from_spectra(
+    sensitivities: np.ndarray,
+    illuminant: np.ndarray,
+    *,
+    camera: str,
+    illuminant_name: str,
+    method: Method = "training",
+    grid: tuple[float, float, float] = DEFAULT_GRID,
+) -> CameraColour:
+    """A :class:`CameraColour` from given spectra (e.g. from :func:`read_spectral_csv`).
+
+    Parameters
+    ----------
+    sensitivities : (D, 3) array
+        Camera R, G, B sensitivities on ``grid``.
+    illuminant : (D,) array
+        Light spectral power on ``grid``.
+    camera, illuminant_name : str
+        Provenance for metadata.
+    method : {"training", "luther"}
+    grid : (start, stop, step) in nm
+    """
+    grid = tuple(float(g) for g in grid)
+    wl = spectral_grid(grid)
+    c = np.asarray(sensitivities, float)
+    e = np.asarray(illuminant, float).reshape(-1)
+    if c.shape != (len(wl), 3) or e.shape != (len(wl),):
+        raise InputError(f"spectra must be ({len(wl)}, 3) and ({len(wl)},) on the grid {grid}; "
+                         f"got {c.shape} and {e.shape}")
+    return CameraColour(
+        wavelengths=wl, sensitivities=_readonly(c), illuminant=_readonly(e),
+        t_wb=_readonly(white_balance_matrix(c, e)),
+        t_raw2xyz=_readonly(raw_to_xyz_matrix(c, e, method=method, grid=grid)),
+        t_xyz2rgb=srgb_matrix(), camera=camera, illuminant_name=illuminant_name, method=method,
     )

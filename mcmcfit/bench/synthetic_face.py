@@ -24,8 +24,8 @@ __all__ = ["synthetic_face_model", "FACE_SEMI_AXES_MM"]
 FACE_SEMI_AXES_MM = (75.0, 100.0, 90.0)
 
 
-def _grid_mesh(n_lat: int, n_lon: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Vertices (n, 3) float64, triangles (m, 3) int32 and grid coordinates (n, 2) in [0, 1]."""
+def _grid_mesh(n_lat: int, n_lon: int) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """Vertices (n, 3) float64, triangles (m, 3) int32, grid coordinates ((n_lat,), (n_lon,))."""
     lat = np.linspace(-0.46 * np.pi, 0.46 * np.pi, n_lat)
     lon = np.linspace(-0.5 * np.pi, 0.5 * np.pi, n_lon)
     la, lo = np.meshgrid(lat, lon, indexing="ij")
@@ -43,30 +43,43 @@ def _grid_mesh(n_lat: int, n_lon: int) -> tuple[np.ndarray, np.ndarray, np.ndarr
     # counter-clockwise seen from +z (lon increases with x, lat with y)
     tris[0::2] = np.stack([q00, q01, q11], 1)
     tris[1::2] = np.stack([q00, q11, q10], 1)
-    uv = np.stack([(la.ravel() - lat[0]) / (lat[-1] - lat[0]),
-                   (lo.ravel() - lon[0]) / (lon[-1] - lon[0])], 1)
-    return verts.reshape(-1, 3), tris, uv
+    grid = (np.linspace(0.0, 1.0, n_lat), np.linspace(0.0, 1.0, n_lon))
+    return verts.reshape(-1, 3), tris, grid
 
 
-def _smooth_basis(rng: np.random.Generator, uv: np.ndarray, k: int, modes: int = 3,
-                  max_freq: float = 6.0) -> np.ndarray:
-    """(3n, k) float64 orthonormal columns, each a smooth random field per coordinate."""
-    n = len(uv)
-    cols = np.empty((n, 3, k))
-    for j in range(k):
-        freq = rng.uniform(-max_freq, max_freq, (modes, 3, 2)) * np.pi
-        phase = rng.uniform(0, 2 * np.pi, (modes, 3))
-        amp = rng.standard_normal((modes, 3))
-        arg = uv @ freq.reshape(-1, 2).T + phase.ravel()  # (n, modes*3)
-        cols[:, :, j] = (np.cos(arg) * amp.ravel()).reshape(n, modes, 3).sum(1)
-    q, _ = np.linalg.qr(cols.reshape(3 * n, k))
-    return q
+def _cosines(t: np.ndarray, g: int) -> np.ndarray:
+    """(len(t), g) smooth 1-D basis ``cos(pi f t)``, f = 0..g-1, for t in [0, 1]."""
+    return np.cos(np.pi * np.outer(t, np.arange(g)))
 
 
-def _part(rng: np.random.Generator, uv: np.ndarray, mean: np.ndarray, k: int,
-          rms_first: float) -> PCAPart:
+def _smooth_basis(rng: np.random.Generator, t_lat: np.ndarray, t_lon: np.ndarray, k: int,
+                  g: int = 8) -> np.ndarray:
+    """(3n, k) float64 orthonormal columns of smooth random fields (vertex-major, xyz minor).
+
+    Each column is, per coordinate, a random combination of the separable
+    low-frequency fields ``cos(pi f t_lat) cos(pi h t_lon)`` (f, h < g). The
+    columns are orthonormalised in coefficient space with the Gram matrix of
+    these fields, which costs nothing like a QR of the (3n, k) matrix.
+    """
+    bu, bv = _cosines(t_lat, g), _cosines(t_lon, g)
+    decay = 1.0 / (1.0 + np.add.outer(np.arange(g), np.arange(g)))  # smoother is likelier
+    coef = rng.standard_normal((3, g, g, k)) * decay[None, :, :, None]
+    gram_1d = np.kron(bu.T @ bu, bv.T @ bv)  # (g*g, g*g): inner products of the 2-D fields
+    flat = coef.reshape(3, g * g, k)
+    gram = np.einsum("cak,ab,cbl->kl", flat, gram_1d, flat)
+    chol = np.linalg.cholesky(gram)
+    # columns R -> R L^-T, i.e. rows R^T -> L^-1 R^T: orthonormal under the Gram matrix
+    flat = np.linalg.solve(chol, flat.transpose(2, 0, 1).reshape(k, -1)).reshape(k, 3, g, g)
+    out = np.empty((len(t_lat), len(t_lon), 3, k))
+    for c in range(3):
+        out[:, :, c, :] = np.einsum("if,kfh,jh->ijk", bu, flat[:, c], bv, optimize=True)
+    return out.reshape(-1, k)
+
+
+def _part(rng: np.random.Generator, grid: tuple[np.ndarray, np.ndarray], mean: np.ndarray,
+          k: int, rms_first: float) -> PCAPart:
     """PCA part whose first component moves the data by ``rms_first`` (rms) per entry."""
-    basis = _smooth_basis(rng, uv, k)
+    basis = _smooth_basis(rng, *grid, k)
     std = rms_first * np.sqrt(mean.size) / (1.0 + np.arange(k)) ** 0.7
     return PCAPart(mean, basis, std**2)
 
@@ -93,13 +106,15 @@ def synthetic_face_model(seed: int = 0, n_lat: int = 232, n_lon: int = 232, *,
         specular albedo in linear RGB with one shared coefficient vector.
     """
     rng = np.random.default_rng(seed)
-    verts, tris, uv = _grid_mesh(n_lat, n_lon)
-    shape = _part(rng, uv, verts.ravel(), shape_rank, 2.0)
-    expression = _part(rng, uv, np.zeros(verts.size), expression_rank, 1.0)
+    verts, tris, grid = _grid_mesh(n_lat, n_lon)
+    shape = _part(rng, grid, verts.ravel(), shape_rank, 2.0)
+    expression = _part(rng, grid, np.zeros(verts.size), expression_rank, 1.0)
     skin = np.array([0.55, 0.38, 0.30])
-    shade = 1.0 + 0.15 * np.cos(3 * np.pi * uv[:, :1]) * np.cos(2 * np.pi * uv[:, 1:])
-    diffuse = _part(rng, uv, (skin * shade).ravel(), albedo_rank, 0.04)
-    specular = _part(rng, uv, np.full(verts.size, 0.15), albedo_rank, 0.02)
+    t_lat, t_lon = np.meshgrid(*grid, indexing="ij")
+    shade = (1.0 + 0.15 * np.cos(3 * np.pi * t_lat.reshape(-1, 1))
+             * np.cos(2 * np.pi * t_lon.reshape(-1, 1)))
+    diffuse = _part(rng, grid, (skin * shade).ravel(), albedo_rank, 0.04)
+    specular = _part(rng, grid, np.full(verts.size, 0.15), albedo_rank, 0.02)
     return MorphableModel(
         verts, tris, shape, diffuse, expression=expression, specular=specular,
         shared_albedo=True, metadata={"description": "synthetic benchmark face", "seed": str(seed)},

@@ -2,7 +2,8 @@
 
 Actions: ``stitch`` (sample calibrated photographs onto a registered mesh and
 blend them into one seamless per-vertex texture by screened-Poisson
-stitching). Further actions register by appending a ``register_<action>(actions)``
+stitching), ``simulate`` (write synthetic lightstage captures) and ``build``
+(capture folder -> albedo model). Further actions register by appending a ``register_<action>(actions)``
 function to :data:`ACTIONS`.
 """
 
@@ -88,8 +89,38 @@ def register_stitch(actions: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_run_stitch)
 
 
+def register_simulate(actions: argparse._SubParsersAction) -> None:
+    """Add ``pipeline simulate``."""
+    from mcmcfit.commands import pipeline_simulate
+
+    p = actions.add_parser(
+        "simulate", help="write simulated lightstage captures of synthetic subjects",
+        description="Synthetic subjects in a polarised 41-LED lightstage: three poses, "
+                    "parallel/perpendicular photometric pairs, 7 unpolarised views, spectral "
+                    "camera, ISO, sensor noise, misalignment; every effect can be switched off.",
+    )
+    pipeline_simulate.add_arguments(p)
+    p.set_defaults(func=pipeline_simulate.run)
+
+
+def register_build(actions: argparse._SubParsersAction) -> None:
+    """Add ``pipeline build``."""
+    from mcmcfit.commands import pipeline_build
+
+    p = actions.add_parser(
+        "build", help="build an albedo model (AlbedoMM HDF5) from a capture folder",
+        description="Polarisation separation, intrinsic albedo, calibrated colour, per-view "
+                    "sampling, stitching, inpainting, external scans, symmetry-augmented PCA "
+                    "(three variants) and their leave-one-out comparison. Resumable.",
+    )
+    pipeline_build.add_arguments(p)
+    p.set_defaults(func=pipeline_build.run)
+
+
 #: One registrar per ``pipeline`` action, in help order.
-ACTIONS: list[Callable[[argparse._SubParsersAction], None]] = [register_stitch]
+ACTIONS: list[Callable[[argparse._SubParsersAction], None]] = [
+    register_stitch, register_simulate, register_build,
+]
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

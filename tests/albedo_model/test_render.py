@@ -217,3 +217,81 @@ def test_render_cli_bad_input(shared_data, tmp_path, capsys):
     assert main(["render", str(model), str(rps), "-o", str(out)]) != 0
     assert "rank 19" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_compose_fuses_shading_with_a_function():
+    import jax.numpy as jnp
+    model = bumpy_model()
+    renderer = Renderer(model, gamma=True)
+    state = renderer.init_state(scene(sh=SHLight.frontal()))
+    target = tuple(jnp.full(state.hits.prim_id.shape, 0.3 + 0.1 * c, jnp.float32) for c in range(3))
+
+    def sq_error(rgb, mask, target, scale):
+        sq = sum((rgb[c] - target[c]) ** 2 for c in range(3))
+        return scale * jnp.sum(jnp.where(mask, sq, 0.0)), jnp.sum(mask)
+
+    fused = renderer.compose(sq_error)
+    got, count = fused(state, target, jnp.float32(2.0))
+    out = renderer.image(state)
+    want = 2.0 * sum(((out.image[..., c] - (0.3 + 0.1 * c)) ** 2)[out.mask].sum() for c in range(3))
+    assert float(got) == pytest.approx(want, rel=1e-5)
+    assert int(count) == out.mask.sum()
+
+
+def test_steps_reuse_cached_pixel_attributes():
+    model = bumpy_model()
+    renderer = Renderer(model)
+    state = renderer.init_state(scene(sh=SHLight.frontal()))
+    rng = np.random.default_rng(2)
+    moved = dict(moves(state.params, rng))
+    light = renderer.update(state, moved[Block.LIGHT], Block.LIGHT)
+    assert light.pixel_geometry is state.pixel_geometry and light.pixel_albedo is state.pixel_albedo
+    albedo = renderer.update(state, moved[Block.ALBEDO], Block.ALBEDO)
+    assert albedo.pixel_hits is state.pixel_hits and albedo.pixel_geometry is state.pixel_geometry
+    assert albedo.pixel_albedo is not state.pixel_albedo
+    pose = renderer.update(state, moved[Block.POSE], Block.POSE)
+    assert pose.pixel_geometry is not state.pixel_geometry and pose.shape is state.shape
+
+
+def test_long_chain_of_block_updates_matches_full_render():
+    """Hundreds of accepted float32 block updates (with periodic refresh) stay exact."""
+    from albedo_model.instance_updates import InstanceUpdater
+    model = bumpy_model(k=6)
+    renderer = Renderer(model, gamma=True)
+    renderer._updater = InstanceUpdater(refresh_every=64)
+    start = scene(sh=SHLight.frontal())
+    start = start._replace(momo=MoMoCoefficients(np.full(6, 0.1), np.full(6, -0.1), np.zeros(0)))
+    state = renderer.init_state(start)
+    rng = np.random.default_rng(3)
+    for step in range(300):
+        m = state.params.momo
+        block = slice(2 * (step % 3), 2 * (step % 3) + 2)
+        if step % 2:
+            c = m.color.copy()
+            c[block] += rng.normal(0, 0.2, 2)
+            p, touched = state.params._replace(momo=m._replace(color=c)), Block.ALBEDO
+        else:
+            c = m.shape.copy()
+            c[block] += rng.normal(0, 0.05, 2)
+            p, touched = state.params._replace(momo=m._replace(shape=c)), Block.SHAPE
+        state = renderer.accept(renderer.update(state, p, touched))
+    assert state.updates == (150 % 64, 150 % 64)  # 150 updates each, refreshed every 64
+    fresh = Renderer(model, gamma=True).render(state.params)
+    np.testing.assert_allclose(renderer.image(state).image, fresh.image, atol=3e-5)
+    np.testing.assert_allclose(state.shape, model.shape.instance(state.params.momo.shape),
+                               atol=1e-4)
+
+
+def test_light_change_that_switches_effects_on():
+    """A LIGHT step adding a directional light needs view directions the cache lacked."""
+    from albedo_model.params import DirectionalLight
+    model = bumpy_model()
+    renderer = Renderer(model, specular=False)
+    state = renderer.init_state(scene(sh=SHLight.frontal()))
+    assert state.pixel_geometry.view is None
+    lit = state.params._replace(directional_light=DirectionalLight(
+        (0.1,) * 3, (0.6,) * 3, (0.3, 0.4, 1.0), (0.3,) * 3, 15.0))
+    cand = renderer.update(state, lit, Block.LIGHT)
+    assert cand.effects.directional and cand.pixel_geometry.view is not None
+    np.testing.assert_allclose(renderer.image(cand).image,
+                               Renderer(model, specular=False).render(lit).image, atol=2e-5)

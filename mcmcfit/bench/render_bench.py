@@ -1,0 +1,297 @@
+"""``mcmcfit bench render``: wall time of one sampler step per proposal kind.
+
+A sampler step is: the proposal's parameters -> :meth:`Renderer.update` (only the
+stages the changed block makes stale) -> shading fused with a Gaussian pixel
+log-likelihood (:meth:`Renderer.compose`) -> the scalar on the host -> accept or
+reject (alternating, as a sampler at 50 % acceptance would). The same steps are
+timed on the naive path (:class:`mcmcfit.bench.naive_step.NaiveStep`, nothing
+cached), and with the specular term switched off (an effect that is off must be
+cheaper, not multiplied by zero).
+
+Each (kind, path) is a chain of its own, and all chains of one image size take
+turns of five steps, so that other processes on the machine slow them alike
+and the ratios stay meaningful (within a turn the caches are warm, as in a run
+of one kind); the medians are still wall times under whatever load there was
+(the table prints the load average).
+
+Model: :func:`mcmcfit.bench.synthetic_face.synthetic_face_model` (53,824
+vertices, 106,722 triangles; shape 50 + expression 5, albedo 50 shared), seen
+frontally so that the face covers about 60 % of the pixels.
+
+This module imports ``albedo_model`` and ``mcmcfit.bench``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from collections.abc import Callable, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from albedo_model.params import (
+    Block, MoMoCoefficients, Pose, RenderParameter, SHLight, default_square, fit_to_image_size,
+)
+from albedo_model.raycast import default_threads
+from albedo_model.render import Renderer
+from mcmcfit.bench.naive_step import NaiveStep
+from mcmcfit.bench.synthetic_face import synthetic_face_model
+
+__all__ = ["KINDS", "MIX", "BenchRow", "BenchResult", "face_scene", "run_render_bench",
+           "format_table"]
+
+#: Proposal kinds and the blocks they touch.
+KINDS = {"pose": Block.POSE, "shape": Block.SHAPE, "albedo": Block.ALBEDO, "light": Block.LIGHT}
+_BLOCK = 10  # coefficients per shape / albedo proposal
+_SIGMA = 0.05  # pixel noise of the likelihood (linear RGB)
+_CHUNK = 5  # consecutive steps of one chain before the next chain's turn
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchRow:
+    """Median ms per step of one proposal kind at one image size."""
+
+    size: int
+    kind: str
+    ours_ms: float
+    ours_no_specular_ms: float
+    naive_ms: float
+    coverage: float
+
+    @property
+    def speedup(self) -> float:
+        """naive / ours."""
+        return self.naive_ms / self.ours_ms
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchResult:
+    """All rows plus the machine facts the table prints."""
+
+    rows: list[BenchRow]
+    cores: int
+    threads: int
+    update_method: str
+    steps: int
+    build_s: float
+    n_vertices: int
+    n_triangles: int
+    load_before: tuple[float, float, float]
+    load_after: tuple[float, float, float]
+
+
+def face_scene(model, size: int, coverage: float = 0.6) -> RenderParameter:
+    """Frontal scene of ``size``² pixels in which the face covers about ``coverage``.
+
+    The distance is solved from the projected area of the face's outline
+    (an ellipse of the model's x/y extent) with the default camera.
+    """
+    p = fit_to_image_size(default_square(), size, size)
+    v = model.vertices
+    half_w, half_h = (v[:, 0].max() - v[:, 0].min()) / 2, (v[:, 1].max() - v[:, 1].min()) / 2
+    f_px = size * p.camera.focal_length / p.camera.sensor_size[0]
+    # pi a b (f / d)^2 = coverage * size^2 for the outline (the rim lies near z = 0)
+    dist = f_px * np.sqrt(np.pi * half_w * half_h / (coverage * size * size))
+    n_shape, n_color = model.shape.rank, model.diffuse.rank
+    n_expr = 0 if model.expression is None else model.expression.rank
+    sh = SHLight.frontal().coefficients.copy()
+    sh[1:4] += (0.05, 0.1, -0.05)
+    return p._replace(
+        pose=Pose(1.0, (0.0, 0.0, -float(dist)), 0.0, 0.05, 0.0),
+        environment_map=SHLight(sh),
+        momo=MoMoCoefficients(np.zeros(n_shape), np.zeros(n_color), np.zeros(n_expr)),
+    )
+
+
+def _proposal(params: RenderParameter, kind: str, step: int, rng: np.random.Generator):
+    m = params.momo
+    if kind == "pose":
+        return params._replace(pose=params.pose._replace(yaw=params.pose.yaw + rng.normal(0, 0.01)))
+    if kind in ("shape", "albedo"):
+        coeffs = m.shape if kind == "shape" else m.color
+        start = (_BLOCK * step) % max(len(coeffs), 1)
+        new = coeffs.copy()
+        new[start:start + _BLOCK] += rng.normal(0, 0.1, len(new[start:start + _BLOCK]))
+        momo = m._replace(shape=new) if kind == "shape" else m._replace(color=new)
+        return params._replace(momo=momo)
+    sh = params.environment_map.coefficients + rng.normal(0, 0.01, (9, 3))
+    return params._replace(environment_map=SHLight(sh))
+
+
+def _log_lik(rgb, mask, target, inv_two_var):
+    """Gaussian pixel log-likelihood (up to a constant) over the face pixels."""
+    sq = sum((rgb[c] - target[c]) ** 2 for c in range(3))
+    return -inv_two_var * jnp.sum(jnp.where(mask, sq, 0.0))
+
+
+def _target(renderer: Renderer, params: RenderParameter, rng: np.random.Generator):
+    """A fixed target: the scene with other albedo and light, plus noise (device arrays)."""
+    m = params.momo
+    other = params._replace(
+        momo=m._replace(color=rng.normal(0, 0.5, len(m.color))),
+        environment_map=SHLight(params.environment_map.coefficients * 1.1),
+    )
+    img = renderer.render(other).image.reshape(-1, 3)
+    img = img + rng.normal(0, _SIGMA, img.shape).astype(np.float32)
+    return tuple(jax.device_put(np.ascontiguousarray(img[:, c])) for c in range(3))
+
+
+class _Chain:
+    """One proposal kind on one path: steps of a sampler at 50 % acceptance, timed."""
+
+    def __init__(self, kind: str, params: RenderParameter, rng: np.random.Generator,
+                 renderer: Renderer | None = None, naive: NaiveStep | None = None):
+        self.kind, self.rng, self.renderer, self.naive = kind, rng, renderer, naive
+        self.i = 0
+        self.times: list[float] = []
+        if renderer is not None:
+            self.log_lik = renderer.compose(_log_lik)
+            self.state = renderer.init_state(params)
+        self.params = params
+
+    def step(self, target, inv) -> None:
+        """One proposal, render, log-likelihood and accept (even steps) or reject (odd)."""
+        proposed = _proposal(self.params, self.kind, self.i, self.rng)
+        accept = self.i % 2 == 0
+        t0 = time.perf_counter()
+        if self.naive is not None:
+            value = self.naive(proposed, target, inv)
+        else:
+            cand = self.renderer.update(self.state, proposed, KINDS[self.kind])
+            value = float(self.log_lik(cand, target, inv))
+            if accept:
+                self.state = self.renderer.accept(cand)
+            else:
+                self.renderer.reject()
+        self.times.append(time.perf_counter() - t0)
+        if not np.isfinite(value):
+            raise FloatingPointError(f"{self.kind}: log-likelihood is {value}")
+        if accept:
+            self.params = proposed
+        self.i += 1
+
+    def median_ms(self, skip: int) -> float:
+        return 1e3 * float(np.median(self.times[skip:]))
+
+
+def _time_size(model, size: int, steps: int, warmup: int, naive_steps: int, threads: int,
+               seed: int, log) -> tuple[list[BenchRow], str]:
+    """All chains of one image size, stepped round-robin so that load hits them alike."""
+    params = face_scene(model, size)
+    rng = np.random.default_rng([seed, size])
+    # geometry chains get renderers of their own: accepting a shape moves the scene
+    spec = {"geometry": Renderer(model, threads=threads), "other": Renderer(model, threads=threads)}
+    plain = {"geometry": Renderer(model, specular=False, threads=threads),
+             "other": Renderer(model, specular=False, threads=threads)}
+    target = _target(spec["other"], params, rng)
+    coverage = float(spec["other"].render(params).mask.mean())
+    naive = NaiveStep(model, spec["other"].effects(params), jax.jit(_log_lik), threads=threads)
+    chains = {}
+    for k, kind in enumerate(KINDS):
+        which = "geometry" if KINDS[kind] & Block.GEOMETRY else "other"
+        for variant, renderers in (("ours", spec), ("plain", plain)):
+            chains[kind, variant] = _Chain(kind, params, np.random.default_rng([seed, size, k]),
+                                           renderer=renderers[which])
+        chains[kind, "naive"] = _Chain(kind, params, np.random.default_rng([seed, size, k]),
+                                       naive=naive)
+    inv = jnp.float32(0.5 / _SIGMA**2)
+    log(f"{size}x{size}: {len(chains)} chains, {warmup} warm-up + {steps} steps each")
+    for chain in chains.values():  # compile everything first
+        for _ in range(warmup if chain.naive is None else 1):
+            chain.step(target, inv)
+    rounds = -(-steps // _CHUNK)
+    naive_per_round = -(-naive_steps // rounds)
+    for _ in range(rounds):
+        for (kind, variant), chain in chains.items():
+            todo = _CHUNK if variant != "naive" else naive_per_round
+            for _ in range(todo):
+                chain.step(target, inv)
+    rows = [BenchRow(size, kind, chains[kind, "ours"].median_ms(warmup),
+                     chains[kind, "plain"].median_ms(warmup),
+                     chains[kind, "naive"].median_ms(1), coverage) for kind in KINDS]
+    method = "refit" if spec["geometry"].refit_supported else "rebuild"
+    return rows, method
+
+
+def run_render_bench(sizes: Sequence[int] = (128, 250, 512), steps: int = 40, *,
+                     threads: int | None = None, warmup: int = 3, naive_steps: int | None = None,
+                     seed: int = 0, grid: int = 232, model=None,
+                     log: Callable[[str], None] | None = None) -> BenchResult:
+    """Time sampler steps per proposal kind and image size (see the module notes).
+
+    Parameters
+    ----------
+    sizes : sequence of int
+        Square image sizes in pixels.
+    steps : int
+        Timed steps per kind and size (median reported; rounded up to whole turns of
+        five), after ``warmup`` steps.
+    threads : int, optional
+        Ray-casting threads (both paths); default :func:`default_threads`.
+    naive_steps : int, optional
+        Timed naive steps (default ``min(steps, 10)``: the naive path is slow).
+    seed : int
+        Seed of the synthetic model, the target and the proposals.
+    grid : int
+        Grid resolution of the synthetic model (232: 53,824 vertices, 106,722
+        triangles; smaller for quick checks).
+    model : MorphableModel, optional
+        Instead of the synthetic model (its build time is reported).
+    log : callable, optional
+        Progress messages.
+
+    Returns
+    -------
+    BenchResult
+    """
+    log = log or (lambda _msg: None)
+    threads = default_threads() if threads is None else int(threads)
+    naive_steps = min(steps, 10) if naive_steps is None else naive_steps
+    load_before = os.getloadavg()
+    t0 = time.perf_counter()
+    model = synthetic_face_model(seed, grid, grid) if model is None else model
+    build_s = time.perf_counter() - t0
+    log(f"model: {model.n_vertices} vertices, {model.n_triangles} triangles, "
+        f"built in {build_s:.2f} s")
+    rows, method = [], "?"
+    for size in sizes:
+        size_rows, method = _time_size(model, int(size), steps, warmup, naive_steps, threads,
+                                       seed, log)
+        rows += size_rows
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return BenchResult(rows, int(cores or 1), threads, method, steps, build_s, model.n_vertices,
+                       model.n_triangles, load_before, os.getloadavg())
+
+
+#: Proposal mix of the steps/s summary (as in performance-notes.md §4).
+MIX = {"shape": 0.4, "pose": 0.2, "albedo": 0.2, "light": 0.2}
+
+
+def format_table(result: BenchResult) -> str:
+    """The benchmark table as text (ms per step, medians)."""
+    lines = [
+        f"cores: {result.cores}  ray-cast threads: {result.threads}  "
+        f"embree update: {result.update_method}  steps: {result.steps} (median)  "
+        f"jax {jax.__version__}",
+        f"model: {result.n_vertices} vertices, {result.n_triangles} triangles "
+        f"(built in {result.build_s:.2f} s)",
+        f"load average (1 min) before {result.load_before[0]:.2f}, "
+        f"after {result.load_after[0]:.2f}",
+        f"{'size':>7s} {'kind':>7s} {'ours ms':>8s} {'no-spec ms':>10s} {'spec +ms':>8s} "
+        f"{'naive ms':>9s} {'naive/ours':>10s} {'face px':>7s}",
+    ]
+    for r in result.rows:
+        lines.append(f"{r.size:>3d}x{r.size:<3d} {r.kind:>7s} {r.ours_ms:8.2f} "
+                     f"{r.ours_no_specular_ms:10.2f} {r.ours_ms - r.ours_no_specular_ms:8.2f} "
+                     f"{r.naive_ms:9.1f} {r.speedup:10.1f} {r.coverage:7.1%}")
+    for size in dict.fromkeys(r.size for r in result.rows):
+        ms = {r.kind: r for r in result.rows if r.size == size}
+        if set(MIX) <= set(ms):
+            ours = sum(w * ms[k].ours_ms for k, w in MIX.items())
+            naive = sum(w * ms[k].naive_ms for k, w in MIX.items())
+            lines.append(f"{size}x{size} mixed 40/20/20/20 (shape/pose/albedo/light): "
+                         f"{1e3 / ours:.0f} steps/s, naive {1e3 / naive:.1f} steps/s")
+    return "\n".join(lines)

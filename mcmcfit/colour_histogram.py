@@ -1,0 +1,87 @@
+"""The colour-histogram background model of the image likelihood (scalismo's HistogramRGB).
+
+This module imports only numpy and :mod:`albedo_model.errors`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from albedo_model.errors import InputError
+
+__all__ = ["ColourHistogram", "colour_histogram"]
+
+
+class ColourHistogram(NamedTuple):
+    """A 3-D colour histogram over [0, 1]^3 with ``bins`` bins per channel.
+
+    Attributes
+    ----------
+    counts : (B, B, B) int64
+    total : int
+    bins : int
+    """
+
+    counts: np.ndarray
+    total: int
+    bins: int
+
+    def bin_index(self, colours: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bin of each colour per channel: ``min(floor(c B), B - 1)`` (c clipped to [0, 1])."""
+        c = np.clip(np.asarray(colours, np.float64).reshape(-1, 3), 0.0, 1.0)
+        i = np.minimum(np.floor(c * self.bins).astype(np.int64), self.bins - 1)
+        return i[:, 0], i[:, 1], i[:, 2]
+
+    def log_density(self, colours: np.ndarray) -> np.ndarray:
+        """Piecewise-constant density: ``log(count / total) + 3 log B``.
+
+        Parameters
+        ----------
+        colours : (..., 3) float array in [0, 1]
+
+        Returns
+        -------
+        (...,) float64; ``-inf`` in empty bins.
+        """
+        shape = np.asarray(colours).shape[:-1]
+        r, g, b = self.bin_index(colours)
+        with np.errstate(divide="ignore"):
+            out = np.log(self.counts[r, g, b] / self.total) + 3.0 * math.log(self.bins)
+        return out.reshape(shape)
+
+
+def colour_histogram(colours: np.ndarray, *, bins: int = 25,
+                     weights: np.ndarray | None = None) -> ColourHistogram:
+    """Histogram of colours in [0, 1]^3.
+
+    Parameters
+    ----------
+    colours : (..., 3) float array
+        Values must lie in [0, 1] (checked; NaN rejected).
+    bins : int
+        Bins per channel (>= 1).
+    weights : (...,) array, optional
+        Only colours with weight > 1e-4 count (scalismo uses the alpha channel).
+
+    Raises
+    ------
+    InputError
+        Colours outside [0, 1], no colour counted, or bad ``bins``.
+    """
+    bins = int(bins)
+    if bins < 1:
+        raise InputError(f"histogram bins must be >= 1, got {bins}")
+    c = np.asarray(colours, np.float64).reshape(-1, 3)
+    if weights is not None:
+        c = c[np.asarray(weights, np.float64).reshape(-1) > 1e-4]
+    if c.shape[0] == 0:
+        raise InputError("colour histogram needs at least one colour")
+    if not np.all((c >= 0.0) & (c <= 1.0)):
+        raise InputError("colour histogram: colours must lie in [0, 1]")
+    h = ColourHistogram(np.zeros((bins,) * 3, np.int64), int(c.shape[0]), bins)
+    r, g, b = h.bin_index(c)
+    np.add.at(h.counts, (r, g, b), 1)
+    return h

@@ -1,0 +1,196 @@
+"""The target photograph for the image likelihood: linearisation, background, evaluation.
+
+Colour space (one choice, used everywhere in mcmcfit): the model is shaded in
+**linear sRGB** and compared there. Targets are 8-bit sRGB photographs read as
+value/255; they are linearised with AlbedoMM's pure power, ``I_lin = I^2.2``
+(not the piecewise sRGB curve), before comparison, for the background
+histogram (built from the linearised target pixels, so that foreground and
+background are densities of the same variable) and for the SH light solver.
+The pixel sigma (0.043 by default) is therefore in linear units.
+
+This module imports :mod:`albedo_model` and :mod:`mcmcfit.likelihoods`,
+:mod:`mcmcfit.colour_histogram`.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from albedo_model.errors import InputError
+from albedo_model.shading import GAMMA, Shaded
+from mcmcfit.colour_histogram import ColourHistogram, colour_histogram
+from mcmcfit.likelihoods import (
+    ImageArrays,
+    collective_terms,
+    finish_collective,
+    finish_independent,
+    finish_trimmed,
+    independent_terms,
+    trimmed_terms,
+)
+
+__all__ = ["linearise", "ImageTarget", "prepare_image_target", "ImageLikelihood",
+           "IMAGE_LIKELIHOODS"]
+
+#: Kinds of image likelihood :class:`ImageLikelihood` evaluates.
+IMAGE_LIKELIHOODS = ("independent", "collective", "trimmed")
+
+
+def linearise(image: np.ndarray) -> np.ndarray:
+    """Pure-power linearisation ``x^2.2`` of an image in [0, 1] (clipped; 0 stays 0).
+
+    Parameters
+    ----------
+    image : (..., 3) float array, gamma-encoded (value/255 for 8-bit files)
+
+    Returns
+    -------
+    (..., 3) float64 linear RGB in [0, 1]
+    """
+    x = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
+    with np.errstate(divide="ignore"):
+        return np.where(x > 0.0, np.exp(GAMMA * np.log(np.maximum(x, 1e-300))), 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class ImageTarget:
+    """A prepared target image.
+
+    Attributes
+    ----------
+    linear : (H, W, 3) float64, host
+        Linearised target.
+    histogram : ColourHistogram
+        Background model, built from all pixels of ``linear``.
+    arrays : ImageArrays
+        Device copies: linear RGB planes (H, W) float32 and the background log
+        density of every pixel (H, W) float32.
+    """
+
+    linear: np.ndarray
+    histogram: ColourHistogram
+    arrays: ImageArrays
+
+    @property
+    def height(self) -> int:
+        return int(self.linear.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.linear.shape[1])
+
+
+def prepare_image_target(image: np.ndarray, *, bins: int = 25) -> ImageTarget:
+    """Linearise a photograph and build its background histogram.
+
+    Parameters
+    ----------
+    image : (H, W, 3) float array in [0, 1], gamma-encoded sRGB
+        (e.g. :func:`albedo_model.io.image_io.read_image`).
+    bins : int
+        Histogram bins per channel (25 in the reference).
+
+    Raises
+    ------
+    InputError
+        Wrong shape or non-finite values.
+    """
+    img = np.asarray(image, np.float64)
+    if img.ndim != 3 or img.shape[2] != 3 or min(img.shape[:2]) < 1:
+        raise InputError(f"target image must have shape (H, W, 3), got {img.shape}")
+    if not np.all(np.isfinite(img)):
+        raise InputError("target image contains NaN or infinite values")
+    lin = linearise(img)
+    hist = colour_histogram(lin, bins=bins)
+    bg = hist.log_density(lin)
+    arrays = ImageArrays(
+        rgb=tuple(jnp.asarray(lin[..., c], jnp.float32) for c in range(3)),
+        bg=jnp.asarray(bg, jnp.float32),
+    )
+    return ImageTarget(lin, hist, arrays)
+
+
+_DEVICE_FUNCTIONS = {"independent": independent_terms, "collective": collective_terms,
+                     "trimmed": trimmed_terms}
+
+
+@functools.lru_cache(maxsize=None)
+def _jitted(kind: str):
+    return jax.jit(_DEVICE_FUNCTIONS[kind])
+
+
+@dataclass(frozen=True, eq=False)
+class ImageLikelihood:
+    """An image likelihood bound to a target: ``log_lik(shaded) -> float``.
+
+    Parameters
+    ----------
+    target : ImageTarget
+    kind : {"independent", "collective", "trimmed"}
+        Independent Gaussian pixels against the histogram background (the
+        reference's fit), the collective CLT likelihood, or the independent one
+        over the best ``trim_fraction`` of the face pixels.
+    sigma : float
+        Per-channel colour noise (linear units) of the Gaussian pixel model; the
+        collective likelihood uses ``sqrt(3) sigma`` as its RMS distance.
+    trim_fraction : float in (0, 1]
+    relative_variance : float
+        Of the collective likelihood (2/3: Gaussian per-channel noise).
+    """
+
+    target: ImageTarget
+    kind: str = "independent"
+    sigma: float = 0.043
+    trim_fraction: float = 0.9
+    relative_variance: float = 2.0 / 3.0
+    _fn: object = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.kind not in IMAGE_LIKELIHOODS:
+            raise InputError(f"image likelihood must be one of {IMAGE_LIKELIHOODS}, "
+                             f"got {self.kind!r}")
+        if not (math.isfinite(self.sigma) and self.sigma > 0):
+            raise InputError(f"pixel sigma must be > 0, got {self.sigma!r}")
+        if not 0.0 < self.trim_fraction <= 1.0:
+            raise InputError(f"trim fraction must be in (0, 1], got {self.trim_fraction!r}")
+        object.__setattr__(self, "_fn", _jitted(self.kind))
+
+    @property
+    def device_fn(self):
+        """The pure JAX function ``fn(rgb, mask, *device_args())`` of this kind.
+
+        Suitable for fusing into the shading ``jit``
+        (:meth:`albedo_model.render.Renderer.compose`); :meth:`finish` turns its
+        result into the log likelihood.
+        """
+        return _DEVICE_FUNCTIONS[self.kind]
+
+    def device_args(self) -> tuple:
+        """The arguments after ``(rgb, mask)`` of :attr:`device_fn`."""
+        if self.kind == "collective":
+            return (self.target.arrays,)
+        return (self.target.arrays, jnp.float32(self.sigma))
+
+    def terms(self, rgb, mask):
+        """Device partial results for the shader output (see :mod:`mcmcfit.likelihoods`)."""
+        return self._fn(rgb, mask, *self.device_args())
+
+    def finish(self, rows, counts) -> float:
+        """Host float64 value from the device results (partial sums, or values and mask)."""
+        rows, counts = np.asarray(rows), np.asarray(counts)
+        if self.kind == "independent":
+            return finish_independent(rows, counts, self.sigma)
+        if self.kind == "collective":
+            return finish_collective(rows, counts, math.sqrt(3.0) * self.sigma,
+                                     self.relative_variance)
+        return finish_trimmed(rows, counts, self.sigma, self.trim_fraction)
+
+    def __call__(self, shaded: Shaded) -> float:
+        """Log likelihood of the target given a render (linear colours, full-image arrays)."""
+        return self.finish(*self.terms(shaded.rgb, shaded.mask))
