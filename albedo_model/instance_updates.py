@@ -13,7 +13,12 @@ of the incremental updates would drift over a long chain, so every
 ``refresh_every`` incremental updates the instance is recomputed from all
 coefficients in float64 (:meth:`InstanceUpdater.update` reports the count).
 
-This module imports only :mod:`albedo_model.pca` and :mod:`albedo_model.errors`.
+:class:`ModelInstances` applies this to a morphable model: the shape +
+expression instance, and the diffuse (+ specular) albedo instance as one
+stacked vector when the two share coefficients.
+
+This module imports only :mod:`albedo_model.pca`, :mod:`albedo_model.params`,
+:mod:`albedo_model.model` and :mod:`albedo_model.errors`.
 """
 
 from __future__ import annotations
@@ -21,9 +26,11 @@ from __future__ import annotations
 import numpy as np
 
 from albedo_model.errors import InputError
+from albedo_model.model import MorphableModel
+from albedo_model.params import RenderParameter
 from albedo_model.pca import PCAPart
 
-__all__ = ["InstanceUpdater", "coefficients_for"]
+__all__ = ["InstanceUpdater", "ModelInstances", "coefficients_for"]
 
 
 def coefficients_for(part: PCAPart | None, c, name: str, source: str = "parameters") -> np.ndarray:
@@ -82,6 +89,30 @@ class InstanceUpdater:
         # ids of the parts -> (parts, (k, sum of dims) float32 scaled basis, transposed);
         # holding the parts keeps their ids valid
         self._basis_t: dict[tuple[int, ...], tuple[tuple, np.ndarray]] = {}
+
+    def transposed(self, parts: tuple[PCAPart, ...]) -> np.ndarray:
+        """(k, sum of dims) float32 scaled basis of stacked parts, transposed (cached)."""
+        return self._transposed(parts)
+
+    def plan(self, parts: tuple[PCAPart, ...], old: np.ndarray, new: np.ndarray,
+             count: int) -> tuple[np.ndarray, np.ndarray] | str | None:
+        """How to move an instance of ``parts`` from ``old`` to ``new`` coefficients.
+
+        Returns
+        -------
+        None
+            Nothing changed.
+        "full"
+            Recompute from all coefficients (many changed, or ``refresh_every`` reached).
+        (idx, delta) : ((j,) int32, (j,) float32)
+            Add ``delta @ transposed(parts)[idx]`` to the instance.
+        """
+        idx = np.flatnonzero(old != new)
+        if idx.size == 0:
+            return None
+        if count + 1 >= self.refresh_every or 2 * idx.size > parts[0].rank:
+            return "full"
+        return idx.astype(np.int32), (new[idx] - old[idx]).astype(np.float32)
 
     def _transposed(self, parts: tuple[PCAPart, ...]) -> np.ndarray:
         key = tuple(id(p) for p in parts)
@@ -150,3 +181,61 @@ class InstanceUpdater:
             rows = bt[idx[0]:idx[-1] + 1] if idx[-1] - idx[0] + 1 == idx.size else bt[idx]
             out = out + delta @ rows
         return out, count + 1
+
+
+class ModelInstances:
+    """The instances a renderer needs of one model, with block updates.
+
+    Parameters
+    ----------
+    model : MorphableModel
+    specular : bool
+        Include the specular albedo (as a second row of the albedo instance).
+    updater : InstanceUpdater, optional
+    """
+
+    def __init__(self, model: MorphableModel, specular: bool,
+                 updater: InstanceUpdater | None = None):
+        self.model = model
+        self.specular = bool(specular and model.specular is not None)
+        self.updater = InstanceUpdater() if updater is None else updater
+        m = model
+        #: Parts behind the updatable albedo rows (one coefficient vector).
+        self.albedo_parts = ((m.diffuse, m.specular) if self.specular and m.shared_albedo
+                             else (m.diffuse,))
+
+    def _shape_terms(self, params: RenderParameter) -> list:
+        m = self.model
+        terms = [((m.shape,), coefficients_for(m.shape, params.momo.shape, "shape"))]
+        expr = coefficients_for(m.expression, params.momo.expression, "expression")
+        if m.expression is not None:
+            terms.append(((m.expression,), expr))
+        return terms
+
+    def shape(self, params: RenderParameter) -> np.ndarray:
+        """(3n,) float32 shape + expression instance (model frame, interleaved)."""
+        return self.updater.instance(self._shape_terms(params))
+
+    def update_shape(self, old: RenderParameter, new: RenderParameter, inst: np.ndarray,
+                     count: int) -> tuple[np.ndarray, int]:
+        """:meth:`InstanceUpdater.update` of the shape instance ``inst`` of ``old``."""
+        terms = [(parts, a, b) for (parts, a), (_, b) in
+                 zip(self._shape_terms(old), self._shape_terms(new))]
+        return self.updater.update(terms, inst, count)
+
+    def albedo(self, params: RenderParameter) -> np.ndarray:
+        """(1, 3n) diffuse or (2, 3n) diffuse + specular float32 instance."""
+        m = self.model
+        c = coefficients_for(m.diffuse, params.momo.color, "colour")
+        flat = self.updater.instance([(self.albedo_parts, c)]).reshape(len(self.albedo_parts), -1)
+        if self.specular and not m.shared_albedo:
+            # an independent specular albedo has no coefficients in a scene: its mean
+            return np.stack([flat[0], m.specular.mean.astype(np.float32)])
+        return flat
+
+    def albedo_plan(self, old: RenderParameter, new: RenderParameter, count: int):
+        """:meth:`InstanceUpdater.plan` for the albedo rows of :attr:`albedo_parts`."""
+        m = self.model
+        return self.updater.plan(self.albedo_parts,
+                                 coefficients_for(m.diffuse, old.momo.color, "colour"),
+                                 coefficients_for(m.diffuse, new.momo.color, "colour"), count)

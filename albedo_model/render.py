@@ -19,10 +19,15 @@ ALBEDO                       changed block of the albedo instance, pixel albedo
 LIGHT, COLOR, SPEC. EXP.     nothing before shading
 ==========================  =================================================
 
-Shading then runs over the cached pixel attributes only
-(:func:`albedo_model.shading.shade_pixels`, compiled for the scene's effect set),
-so a light step is a single pass over the pixels. :meth:`Renderer.compose` fuses
-that pass with a caller's function (a likelihood) in one ``jit``. A geometry
+The light transport of every pixel (:func:`albedo_model.shading.pixel_light`:
+SH irradiance, specular lobe, directional light) is cached too and recomputed
+only when the geometry, light or specular exponent changes; the image is then
+``albedo x light`` plus colour transform, clamp and gamma
+(:func:`albedo_model.shading.combine_pixels`), all compiled for the scene's
+effect set. A light step is therefore two passes over the pixels without any
+gather, an albedo step one gather pass and one cheap combination.
+:meth:`Renderer.compose` fuses the combination with a caller's function (a
+likelihood) in one ``jit``. A geometry
 change is cast with the spare scene; the sampler calls :meth:`Renderer.accept`
 or :meth:`Renderer.reject`, so a rejected proposal costs nothing to undo.
 
@@ -36,23 +41,20 @@ from collections.abc import Callable
 import jax.numpy as jnp
 import numpy as np
 
-from albedo_model.camera import (
-    _eye_rays, camera_rays, euler_rotation, eye_from_world, eye_position_model, project,
-    towards_camera_model,
-)
+from albedo_model.camera import _eye_rays, camera_rays, euler_rotation, eye_from_world
 from albedo_model.errors import InputError
-from albedo_model.instance_updates import InstanceUpdater, coefficients_for
+from albedo_model.instance_updates import ModelInstances
 from albedo_model.interpolation import needs_view
 from albedo_model.model import MorphableModel
 from albedo_model.params import Block, RenderParameter
-from albedo_model.raycast import RayHits, visible_points
+from albedo_model.raycast import RayHits
 from albedo_model.render_state import (
-    Rendered, RenderState, albedo_stage, fused_stage, normals_stage, pixels_satisfy,
-    pixels_stage, shade_stage,
+    HostAlbedo, Rendered, RenderState, albedo_delta_stage, albedo_stage, combine_stage,
+    fused_stage, light_stage, normals_stage, pixels_satisfy, pixels_stage,
 )
 from albedo_model.scene_slots import SceneSlots
 from albedo_model.shading import Effects, Shaded, effects_for, pack_shading_params, to_hwc
-from albedo_model.shadows import directional_visibility
+from albedo_model.visibility import directional_visibility, landmark_pixels
 
 __all__ = ["Renderer", "RenderState", "Rendered", "STAGE_DEPS", "render"]
 
@@ -63,6 +65,11 @@ STAGE_DEPS = {
     "albedo": Block.ALBEDO,
     "shading": Block.POSE | Block.LIGHT | Block.COLOR | Block.SPECULAR_EXPONENT,
 }
+
+
+def _light_effects(effects: Effects) -> Effects:
+    """The switches :func:`albedo_model.shading.pixel_light` depends on (others at defaults)."""
+    return effects._replace(color_transform=False, gamma=False, clamp=True)
 
 
 class Renderer:
@@ -98,9 +105,12 @@ class Renderer:
         self._threads = threads
         self._triangles = jnp.asarray(model.triangles, jnp.int32)
         self._slots: SceneSlots | None = None
-        self._ray_buffers: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
-        self._dirs_cache: dict = {}
-        self._updater = InstanceUpdater()
+        # model-frame rays of the last cast (origins, directions), and the scene they are for
+        self._rays = (np.empty((0, 3), np.float32), np.empty((0, 3), np.float32))
+        self._rays_key = None
+        self._views_cache: dict = {}
+        self._instances = ModelInstances(model, self.specular)
+        self._albedo_basis = None  # device (k, rows * 3n) transposed albedo basis, on first use
 
     # -- effects ------------------------------------------------------------
     def effects(self, params: RenderParameter) -> Effects:
@@ -109,58 +119,55 @@ class Renderer:
                            directional_specular_map=self.directional_specular_map)
 
     # -- stages ---------------------------------------------------------------
-    def _shape_terms(self, params: RenderParameter) -> list:
-        m = self.model
-        terms = [((m.shape,), coefficients_for(m.shape, params.momo.shape, "shape"))]
-        expr = coefficients_for(m.expression, params.momo.expression, "expression")
-        if m.expression is not None:
-            terms.append(((m.expression,), expr))
-        return terms
-
-    def _albedo_instance(self, params: RenderParameter) -> np.ndarray:
-        """(1, 3n) diffuse or (2, 3n) diffuse + specular float32 host instance."""
-        m = self.model
-        c = coefficients_for(m.diffuse, params.momo.color, "colour")
-        if not self.specular:
-            return self._updater.instance([((m.diffuse,), c)]).reshape(1, -1)
-        if m.shared_albedo:
-            return self._updater.instance([((m.diffuse, m.specular), c)]).reshape(2, -1)
-        # independent specular albedo has no coefficients in a scene: its mean
-        return np.stack([self._updater.instance([((m.diffuse,), c)]),
-                         m.specular.mean.astype(np.float32)])
-
     def _albedo_update(self, state: RenderState, params: RenderParameter):
-        """(albedo, count): ``state.albedo`` itself when no coefficient changed."""
-        m = self.model
-        old = coefficients_for(m.diffuse, state.params.momo.color, "colour")
-        new = coefficients_for(m.diffuse, params.momo.color, "colour")
-        shared = self.specular and m.shared_albedo
-        parts = (m.diffuse, m.specular) if shared else (m.diffuse,)
-        base = state.albedo.reshape(-1) if shared else state.albedo[0]
-        flat, count = self._updater.update([(parts, old, new)], base, state.updates[1])
-        if flat is base:
-            return state.albedo, count
-        if shared or len(state.albedo) == 1:
-            return flat.reshape(len(state.albedo), -1), count
-        return np.stack([flat, state.albedo[1]]), count
+        """None when nothing changed, else ``(albedo_dev, host copy, update count)``.
+
+        A block change is applied on the device (:func:`albedo_delta_stage`); a large
+        change, or every ``refresh_every``-th update, recomputes the instance on the
+        host in float64.
+        """
+        plan = self._instances.albedo_plan(state.params, params, state.updates[1])
+        if plan is None:
+            return None
+        if isinstance(plan, str):
+            host = self._instances.albedo(params)
+            albedo_dev = jnp.asarray(host)
+            return albedo_dev, HostAlbedo(albedo_dev, host), 0
+        idx, delta = plan
+        if self._albedo_basis is None:
+            parts = self._instances.albedo_parts
+            self._albedo_basis = jnp.asarray(self._instances.updater.transposed(parts))
+        # pad to a power of two (repeating a row with zero weight) to bound recompiles
+        size = 1 << int(np.ceil(np.log2(len(idx))))
+        idx = np.concatenate([idx, np.full(size - len(idx), idx[0], np.int32)])
+        delta = np.concatenate([delta, np.zeros(size - len(delta), np.float32)])
+        albedo_dev = albedo_delta_stage(state.albedo_dev, self._albedo_basis, idx, delta)
+        return albedo_dev, HostAlbedo(albedo_dev), state.updates[1] + 1
 
     def _cast(self, params: RenderParameter, caster) -> RayHits:
         size = params.image_size
-        key = (int(size.width), int(size.height))
-        if key not in self._ray_buffers:
-            p = key[0] * key[1]
-            self._ray_buffers = {key: (np.empty((p, 3), np.float32), np.empty((p, 3), np.float32))}
-        origins, directions = camera_rays(params.camera, size, params.pose, params.view,
-                                          out=self._ray_buffers[key])
+        w, h = int(size.width), int(size.height)
+        key = (params.camera, size, params.pose, params.view)
+        try:
+            same = self._rays_key == key  # a shape step keeps the rays of the last cast
+        except ValueError:  # array-valued fields: compare nothing, recompute
+            same = False
+        if not same:
+            if len(self._rays[0]) != w * h:
+                self._rays = (np.empty((w * h, 3), np.float32), np.empty((w * h, 3), np.float32))
+            camera_rays(params.camera, size, params.pose, params.view, out=self._rays)
+            self._rays_key = key
         tfar = float(params.camera.far - params.camera.near)
-        return caster.cast(origins, directions, tfar=tfar, image_shape=(key[1], key[0]))
+        return caster.cast(*self._rays, tfar=tfar, image_shape=(h, w))
 
     def _pixels(self, params: RenderParameter, effects: Effects, normals, albedo_dev, hits):
         p = params
         rotation = euler_rotation(p.pose.roll, p.pose.yaw, p.pose.pitch).astype(np.float32)
-        ray_dirs = self._world_ray_dirs(p) if needs_view(effects) else None
-        return pixels_stage(effects)(self._triangles, normals, albedo_dev, hits.prim_id,
-                                     hits.bary, ray_dirs, rotation)
+        px_hits, geometry, albedo = pixels_stage(effects)(
+            self._triangles, normals, albedo_dev, hits.prim_id, hits.bary, rotation)
+        if needs_view(effects):
+            geometry = geometry._replace(view=self._world_views(p))
+        return px_hits, geometry, albedo
 
     def _shading(self, params: RenderParameter) -> np.ndarray:
         p = params
@@ -170,7 +177,7 @@ class Renderer:
     # -- public API -------------------------------------------------------------
     def init_state(self, params: RenderParameter) -> RenderState:
         """Compute every stage for ``params`` and make its geometry the accepted one."""
-        shape = self._updater.instance(self._shape_terms(params))
+        shape = self._instances.shape(params)
         v32 = shape.reshape(-1, 3)
         vertices = jnp.asarray(v32)
         normals = normals_stage(vertices, self._triangles)
@@ -181,15 +188,16 @@ class Renderer:
             self._slots.reject()
             self._slots.current.update_vertices(v32)
         hits = self._cast(params, self._slots.current)
-        albedo = self._albedo_instance(params)
+        albedo = self._instances.albedo(params)
         albedo_dev = jnp.asarray(albedo)
         effects = self.effects(params)
         px_hits, geometry, px_albedo = self._pixels(params, effects, normals, albedo_dev, hits)
-        return RenderState(
-            params, shape, albedo, albedo[0], albedo[1] if self.specular else None, vertices,
-            normals, albedo_dev, hits, hits.prim_id, hits.bary, False, px_hits, geometry,
-            px_albedo, effects, self._shading(params),
+        state = RenderState(
+            params, shape, vertices, normals, albedo_dev, HostAlbedo(albedo_dev, albedo), hits,
+            hits.prim_id, hits.bary, False, px_hits, geometry, px_albedo, None, effects,
+            self._shading(params),
         )
+        return state._replace(pixel_light=self._light(state, effects))
 
     def update(self, state: RenderState, params: RenderParameter, touched: Block) -> RenderState:
         """The state for ``params``, recomputing only what ``touched`` makes stale.
@@ -216,25 +224,24 @@ class Renderer:
         out = {}
         caster = self._slots.current
         if touched & STAGE_DEPS["geometry"]:
-            old, new = self._shape_terms(s.params), self._shape_terms(params)
-            terms = [(parts, a, b) for (parts, a), (_, b) in zip(old, new)]
-            shape, n_shape = self._updater.update(terms, s.shape, n_shape)
+            shape, n_shape = self._instances.update_shape(s.params, params, s.shape, n_shape)
             v32 = shape.reshape(-1, 3)
             vertices = jnp.asarray(v32)
             out.update(shape=shape, vertices=vertices, geometry_pending=True,
                        normals=normals_stage(vertices, self._triangles))  # runs while Embree casts
             caster = self._slots.propose(v32)
-        if touched & STAGE_DEPS["albedo"]:
-            albedo, n_albedo = self._albedo_update(s, params)
-            if albedo is not s.albedo:
-                out.update(albedo=albedo, diffuse=albedo[0], albedo_dev=jnp.asarray(albedo),
-                           specular=albedo[1] if len(albedo) > 1 else None)
-        s = s._replace(params=params, updates=(n_shape, n_albedo), **out)
+        s = s._replace(params=params, **out)
         if touched & (Block.LIGHT | Block.COLOR):
             s = s._replace(effects=self.effects(params))
         if touched & STAGE_DEPS["shading"]:
             s = s._replace(shading=self._shading(params))
         effects = s.effects
+        if touched & STAGE_DEPS["albedo"]:
+            change = self._albedo_update(state, params)
+            if change is not None:
+                albedo_dev, host_albedo, n_albedo = change
+                s = s._replace(albedo_dev=albedo_dev, host_albedo=host_albedo)
+        s = s._replace(updates=(n_shape, n_albedo))
         if touched & STAGE_DEPS["raycast"]:
             hits = self._cast(params, caster)
             px_hits, geometry, px_albedo = self._pixels(params, effects, s.normals, s.albedo_dev,
@@ -245,8 +252,12 @@ class Renderer:
             px_hits, geometry, px_albedo = self._pixels(params, effects, s.normals, s.albedo_dev,
                                                         s.hits)
             s = s._replace(pixel_geometry=geometry, pixel_albedo=px_albedo)
-        elif "albedo_dev" in out:
+        elif s.albedo_dev is not state.albedo_dev:
             s = s._replace(pixel_albedo=albedo_stage(effects)(s.pixel_hits, s.albedo_dev))
+        if (s.pixel_geometry is not state.pixel_geometry
+                or _light_effects(effects) != _light_effects(state.effects)
+                or touched & (Block.LIGHT | Block.SPECULAR_EXPONENT)):
+            s = s._replace(pixel_light=self._light(s, effects))
         return s
 
     def accept(self, state: RenderState) -> RenderState:
@@ -266,14 +277,22 @@ class Renderer:
         """True when geometry updates refit the BVH in place (else rebuild)."""
         return self._slots is not None and self._slots.current.refit_supported
 
+    def _light(self, state: RenderState, effects: Effects):
+        """Light transport of ``state`` (its pixel geometry must satisfy ``effects``)."""
+        shadow = self._shadow(state) if effects.shadows else None
+        return light_stage(_light_effects(effects))(state.pixel_geometry, state.shading, shadow)
+
     def _shading_inputs(self, state: RenderState, effects: Effects | None):
         eff = state.effects if effects is None else effects
-        geometry, albedo = state.pixel_geometry, state.pixel_albedo
-        if not pixels_satisfy(geometry, albedo, eff):
-            _, geometry, albedo = self._pixels(state.params, eff, state.normals,
-                                               state.albedo_dev, state.hits)
-        shadow = self._shadow(state) if eff.shadows else None
-        return eff, (geometry, albedo, state.shading, shadow)
+        if eff == state.effects:
+            light, albedo = state.pixel_light, state.pixel_albedo
+        else:  # another effect set than the cached one: compute what it needs
+            if not pixels_satisfy(state.pixel_geometry, state.pixel_albedo, eff):
+                _, geometry, albedo = self._pixels(state.params, eff, state.normals,
+                                                   state.albedo_dev, state.hits)
+                state = state._replace(pixel_geometry=geometry, pixel_albedo=albedo)
+            light, albedo = self._light(state, eff), state.pixel_albedo
+        return eff, (light, albedo, state.pixel_hits.mask, state.shading)
 
     def shade(self, state: RenderState, *, effects: Effects | None = None) -> Shaded:
         """Shade the state's cached pixels (device arrays; see :func:`albedo_model.shading.shade`).
@@ -285,7 +304,7 @@ class Renderer:
             Override the renderer's effect set (e.g. to compare effect costs).
         """
         eff, inputs = self._shading_inputs(state, effects)
-        return shade_stage(eff)(*inputs)
+        return combine_stage(eff)(*inputs)
 
     def compose(self, fn: Callable) -> Callable:
         """Shading fused with ``fn`` in one ``jit``: ``g(state, *args) -> fn(rgb, mask, *args)``.
@@ -305,15 +324,9 @@ class Renderer:
             ``fn`` inside the same compiled function, returning ``fn``'s (device)
             result. XLA fuses the per-pixel shading into ``fn``'s reductions, so
             no image is written out. One compile per effect set and argument
-            structure: keep ``fn`` and the argument shapes fixed.
-
-        Examples
-        --------
-        >>> def sq_error(rgb, mask, target):
-        ...     sq = sum((rgb[c] - target[c]) ** 2 for c in range(3))
-        ...     return jnp.sum(jnp.where(mask, sq, 0.0))
-        >>> error = renderer.compose(sq_error)            # doctest: +SKIP
-        >>> value = float(error(state, target))           # doctest: +SKIP
+            structure: keep ``fn`` and the argument shapes fixed. E.g.
+            ``renderer.compose(sq_error)(state, target)`` with
+            ``sq_error(rgb, mask, target) = sum_c sum(where(mask, (rgb[c] - target[c])**2, 0))``.
         """
         compiled: dict[Effects, Callable] = {}
 
@@ -355,33 +368,23 @@ class Renderer:
         visible : (k,) bool
             In front of the camera, inside the image and not occluded by the face.
         """
-        lv = self.model.landmark_vertices
-        names = list(lv) if names is None else [n for n in names if n in lv]
-        if not names:
-            return [], np.zeros((0, 2)), np.zeros(0, bool)
-        idx = np.array([lv[n] for n in names])
-        p = state.params
-        pts = state.shape.reshape(-1, 3)[idx]
-        pixels, depth = project(pts, p.pose, p.view, p.camera, p.image_size)
         caster = self._slots.candidate if state.geometry_pending else self._slots.current
-        if p.camera.orthographic:
-            vis = visible_points(pts, None, caster, direction=towards_camera_model(p.pose, p.view))
-        else:
-            vis = visible_points(pts, eye_position_model(p.pose, p.view), caster)
-        w, h = p.image_size
-        inside = ((pixels[:, 0] >= -0.5) & (pixels[:, 0] <= w - 0.5)
-                  & (pixels[:, 1] >= -0.5) & (pixels[:, 1] <= h - 0.5) & (depth > 0) & (depth < 1))
-        return names, pixels, vis & inside
+        return landmark_pixels(self.model.landmark_vertices, state.shape.reshape(-1, 3),
+                               state.params, caster, names)
 
-    def _world_ray_dirs(self, p: RenderParameter):
+    def _world_views(self, p: RenderParameter) -> tuple:
+        """Unit directions from each pixel's surface point towards the eye: three (P,)
+        device arrays, world frame (they depend on the camera, image size and view only)."""
         key = (p.camera, p.image_size, p.view)
-        if key not in self._dirs_cache:
+        if key not in self._views_cache:
             _, dirs = _eye_rays(p.camera, p.image_size)
             r, _ = eye_from_world(p.view)
             # eye = R world + t, so a world direction is R^T applied to the eye direction
-            world = np.ascontiguousarray(dirs[:, :3] @ r, np.float32)
-            self._dirs_cache = {key: jnp.asarray(world)}
-        return self._dirs_cache[key]
+            world = dirs[:, :3].astype(np.float64) @ r
+            view = -world / np.linalg.norm(world, axis=1, keepdims=True)
+            self._views_cache = {key: tuple(jnp.asarray(view[:, c].astype(np.float32))
+                                            for c in range(3))}
+        return self._views_cache[key]
 
     def _shadow(self, state: RenderState) -> np.ndarray:
         p = state.params

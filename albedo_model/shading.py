@@ -7,12 +7,18 @@ background. Nothing here knows about Embree or the camera model: the inputs are
 the ray caster's per-pixel ``prim_id``/``bary`` and the world-frame ray
 directions of the pixels.
 
-Two layers:
+Layers, each usable on its own:
 
-* :func:`shade_pixels` shades interpolated per-pixel attributes
-  (:class:`~albedo_model.interpolation.PixelGeometry`,
-  :class:`~albedo_model.interpolation.PixelAlbedo`); a renderer caches those, so
-  a light or colour change costs one pass over the pixels without gathers.
+* :func:`pixel_light` turns per-pixel geometry
+  (:class:`~albedo_model.interpolation.PixelGeometry`) and the light into the
+  per-pixel light transport (:class:`PixelLight`): what multiplies the diffuse
+  and the specular albedo, plus what is added regardless of albedo.
+* :func:`combine_pixels` multiplies in the per-pixel albedo
+  (:class:`~albedo_model.interpolation.PixelAlbedo`) and applies the colour
+  transform, clamp, gamma and background. A renderer caches geometry, albedo
+  and light transport, so a colour or albedo change is one cheap pass without
+  gathers or light evaluation, and a light change two passes without gathers.
+* :func:`shade_pixels` is ``combine_pixels(pixel_light(...))``.
 * :func:`shade` (and :func:`shader_function`, :func:`build_shader`) does the
   interpolation too, from per-vertex arrays and hits: the composition
   ``shade_pixels(interpolate_geometry(...), interpolate_albedo(...))``.
@@ -53,7 +59,8 @@ from albedo_model.shading_scalars import (
 
 __all__ = [
     "Effects", "ShadingParams", "Shaded", "GAMMA", "PACKED_SIZE", "effects_for", "shading_params",
-    "pack_shading_params", "unpack_shading_params", "shade_pixels", "pixel_shader_function",
+    "pack_shading_params", "unpack_shading_params", "PixelLight", "pixel_light",
+    "combine_pixels", "shade_pixels", "pixel_shader_function",
     "shader_function", "build_shader", "shade", "encode_gamma", "to_hwc",
 ]
 
@@ -121,9 +128,133 @@ def _check(effects: Effects) -> None:
         raise ValueError("the AlbedoMM specular term needs SH light")
 
 
+class PixelLight(NamedTuple):
+    """Light transport of each pixel: everything of the image but the albedo.
+
+    Before the colour transform, a pixel is ``diffuse * rho + specular * s +
+    constant`` (per channel; rho, s the pixel's diffuse and specular albedo), so
+    an albedo change re-combines cached :class:`PixelLight` without evaluating
+    any light.
+
+    Attributes
+    ----------
+    diffuse : three (P,) float32
+        SH irradiance (plus the directional light's ambient and Lambert terms).
+    specular : three (P,) float32, or None
+        AlbedoMM's lobe times the SH light at the reflected direction (plus the
+        directional Blinn-Phong term with ``directional_specular_map``); None
+        when nothing multiplies the specular albedo.
+    constant : three (P,) float32, or None
+        The directional Blinn-Phong term without a specular map; else None.
+    """
+
+    diffuse: tuple
+    specular: tuple | None
+    constant: tuple | None
+
+
+def pixel_light(effects: Effects, geometry: PixelGeometry, params: ShadingParams,
+                shadow=None) -> PixelLight:
+    """Per-pixel light transport (:class:`PixelLight`) of a scene; no albedo is read.
+
+    Parameters
+    ----------
+    effects : Effects
+        Static switches; an effect that is off is not traced.
+    geometry : PixelGeometry
+        From :func:`~albedo_model.interpolation.interpolate_geometry` with the same
+        effects (``view`` needed for specular or directional light).
+    params : ShadingParams
+        ``rotation`` is not read (the normals are already in the world frame).
+    shadow : (P,) float32 or None
+        Visibility of the directional light; only read with ``effects.shadows``.
+    """
+    _check(effects)
+    k = effects.sh_coefficients
+    nx, ny, nz = geometry.normal
+    if k > 0:
+        weights = jnp.asarray(LAMBERT_FACTORS[:k] * SH_NORMALISATION[:k], jnp.float32)[:, None]
+        weights = weights * params.sh[:k]
+        diffuse = _sh_lambert(weights, k, nx, ny, nz)
+    else:
+        diffuse = [jnp.zeros_like(nx)] * 3
+    specular = constant = None
+    if effects.specular or effects.directional:
+        vx, vy, vz = geometry.view
+    if effects.directional:
+        lx, ly, lz = normalise(*(params.light_direction[i] for i in range(3)))
+        ndl = jnp.maximum(nx * lx + ny * ly + nz * lz, 0.0)
+        hx, hy, hz = normalise(vx + lx, vy + ly, vz + lz)
+        blinn = _safe_pow(nx * hx + ny * hy + nz * hz, params.light_shininess)
+        if effects.shadows:
+            ndl = ndl * shadow
+            blinn = blinn * shadow
+        diffuse = [diffuse[c] + params.light_ambient[c] + params.light_diffuse[c] * ndl
+                   for c in range(3)]
+        spec_dir = [params.light_specular[c] * blinn for c in range(3)]
+        if effects.directional_specular_map:
+            specular = spec_dir
+        else:
+            constant = spec_dir
+    if effects.specular:
+        vn = vx * nx + vy * ny + vz * nz
+        # AlbedoMM's "reflection" 2n - (v.n) v (not the mirror direction 2(v.n)n - v).
+        rx, ry, rz = normalise(2.0 * nx - vn * vx, 2.0 * ny - vn * vy, 2.0 * nz - vn * vz)
+        lobe = _safe_pow(vn, params.specular_exponent)
+        spec_irr = _sh_lambert(weights, k, rx, ry, rz)
+        lobe_light = [lobe * spec_irr[c] for c in range(3)]
+        specular = lobe_light if specular is None else [
+            specular[c] + lobe_light[c] for c in range(3)]
+    return PixelLight(tuple(diffuse), None if specular is None else tuple(specular),
+                      None if constant is None else tuple(constant))
+
+
+def combine_pixels(effects: Effects, light: PixelLight, albedo: PixelAlbedo, mask,
+                   params: ShadingParams) -> Shaded:
+    """The image from light transport and albedo: colour transform, clamp, gamma, background.
+
+    Parameters
+    ----------
+    effects : Effects
+        Static; the same as for :func:`pixel_light`.
+    light : PixelLight
+    albedo : PixelAlbedo
+    mask : (P,) bool
+        Pixels on the surface (others get the background).
+    params : ShadingParams
+        Only the colour transform and background are read.
+    """
+    rho = albedo.diffuse
+    total = [rho[c] * light.diffuse[c] for c in range(3)]
+    if light.specular is not None:
+        total = [total[c] + albedo.specular[c] * light.specular[c] for c in range(3)]
+    if light.constant is not None:
+        total = [total[c] + light.constant[c] for c in range(3)]
+    if effects.color_transform:
+        # The transform is affine, so T(D) + T(S) = T_linear(D + S) + 2 offset:
+        # AlbedoMM applies it to D and S separately and the offset counts twice.
+        kappa = params.color_contrast
+        y = (1.0 - kappa) * _luma(total)
+        n_offsets = 2.0 if effects.specular else 1.0
+        total = [
+            params.color_gain[c] * (kappa * total[c] + y) + n_offsets * params.color_offset[c]
+            for c in range(3)
+        ]
+    if effects.clamp:
+        total = [jnp.clip(c, 0.0, 1.0) for c in total]
+    if effects.gamma:
+        total = [encode_gamma(c) for c in total]
+    # Three outputs, not one stacked (3, P) array: XLA-CPU turns a concatenate
+    # into one branchy loop that recomputes the shading per channel (15x slower).
+    rgb = tuple(jnp.where(mask, total[c], params.background[c]) for c in range(3))
+    return Shaded(rgb=rgb, mask=mask)
+
+
 def shade_pixels(effects: Effects, geometry: PixelGeometry, albedo: PixelAlbedo,
                  params: ShadingParams, shadow=None) -> Shaded:
     """Shade interpolated per-pixel attributes (the maths of :func:`shade`, without gathers).
+
+    ``combine_pixels(pixel_light(geometry), albedo)``.
 
     Parameters
     ----------
@@ -143,68 +274,8 @@ def shade_pixels(effects: Effects, geometry: PixelGeometry, albedo: PixelAlbedo,
     -------
     Shaded
     """
-    _check(effects)
-    k = effects.sh_coefficients
-    hit = geometry.mask
-    nx, ny, nz = geometry.normal
-    rho = albedo.diffuse
-
-    if k > 0:
-        weights = jnp.asarray(LAMBERT_FACTORS[:k] * SH_NORMALISATION[:k], jnp.float32)[:, None]
-        weights = weights * params.sh[:k]
-        irr = _sh_lambert(weights, k, nx, ny, nz)
-        dif = [rho[c] * irr[c] for c in range(3)]
-    else:
-        dif = [jnp.zeros_like(nx)] * 3
-
-    if effects.specular or effects.directional:
-        vx, vy, vz = geometry.view
-
-    if effects.directional:
-        lx, ly, lz = normalise(*(params.light_direction[i] for i in range(3)))
-        ndl = jnp.maximum(nx * lx + ny * ly + nz * lz, 0.0)
-        hx, hy, hz = normalise(vx + lx, vy + ly, vz + lz)
-        blinn = _safe_pow(nx * hx + ny * hy + nz * hz, params.light_shininess)
-        if effects.shadows:
-            ndl = ndl * shadow
-            blinn = blinn * shadow
-        spec_dir = [params.light_specular[c] * blinn for c in range(3)]
-        if effects.directional_specular_map:
-            spec_dir = [spec_dir[c] * albedo.specular[c] for c in range(3)]
-        dif = [
-            dif[c] + rho[c] * (params.light_ambient[c] + params.light_diffuse[c] * ndl)
-            + spec_dir[c]
-            for c in range(3)
-        ]
-
-    total = dif
-    if effects.specular:
-        vn = vx * nx + vy * ny + vz * nz
-        # AlbedoMM's "reflection" 2n - (v.n) v (not the mirror direction 2(v.n)n - v).
-        rx, ry, rz = normalise(2.0 * nx - vn * vx, 2.0 * ny - vn * vy, 2.0 * nz - vn * vz)
-        lobe = _safe_pow(vn, params.specular_exponent)
-        spec_irr = _sh_lambert(weights, k, rx, ry, rz)
-        s_alb = albedo.specular
-        total = [dif[c] + lobe * s_alb[c] * spec_irr[c] for c in range(3)]
-
-    if effects.color_transform:
-        # The transform is affine, so T(D) + T(S) = T_linear(D + S) + 2 offset:
-        # AlbedoMM applies it to D and S separately and the offset counts twice.
-        kappa = params.color_contrast
-        y = (1.0 - kappa) * _luma(total)
-        n_offsets = 2.0 if effects.specular else 1.0
-        total = [
-            params.color_gain[c] * (kappa * total[c] + y) + n_offsets * params.color_offset[c]
-            for c in range(3)
-        ]
-    if effects.clamp:
-        total = [jnp.clip(c, 0.0, 1.0) for c in total]
-    if effects.gamma:
-        total = [encode_gamma(c) for c in total]
-    # Three outputs, not one stacked (3, P) array: XLA-CPU turns a concatenate
-    # into one branchy loop that recomputes the shading per channel (15x slower).
-    rgb = tuple(jnp.where(hit, total[c], params.background[c]) for c in range(3))
-    return Shaded(rgb=rgb, mask=hit)
+    light = pixel_light(effects, geometry, params, shadow)
+    return combine_pixels(effects, light, albedo, geometry.mask, params)
 
 
 def _shade(

@@ -34,8 +34,16 @@ from albedo_model.params import RenderParameter
 from mcmcfit.param_vector import ParamLayout
 from mcmcfit.sampler import ChainState, StepInfo
 
-__all__ = ["BestSample", "ProposalStats", "ChainRecord", "ChainRecorder", "ChainResult",
-           "write_chains_h5", "read_chains_h5", "CHAIN_FILE_VERSION"]
+__all__ = [
+    "CHAIN_FILE_VERSION",
+    "BestSample",
+    "ChainRecord",
+    "ChainRecorder",
+    "ChainResult",
+    "ProposalStats",
+    "read_chains_h5",
+    "write_chains_h5",
+]
 
 CHAIN_FILE_VERSION = "1"
 
@@ -251,21 +259,20 @@ def write_chains_h5(path: str | os.PathLike, chains: list[ChainResult], layout: 
     """
     import h5py
 
-    with atomic_path(path, suffix=".h5") as tmp:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["version"] = CHAIN_FILE_VERSION
-            f.attrs["template_rps"] = format_rps_text(template)
-            for k, v in (attrs or {}).items():
-                f.attrs[k] = v
-            f.create_dataset("parameter_names", data=np.array(layout.names, dtype=object),
-                             dtype=_str_dtype())
-            for c in chains:
-                g = f.create_group(f"chain_{c.index:03d}")
-                g.attrs.update(seed_entropy=str(c.seed_entropy), spawn_key=list(c.spawn_key))
-                if c.stage1 is not None:
-                    _write_record(g.create_group("stage1"), c.stage1)
-                if c.stage2 is not None:
-                    _write_record(g.create_group("stage2"), c.stage2)
+    with atomic_path(path, suffix=".h5") as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["version"] = CHAIN_FILE_VERSION
+        f.attrs["template_rps"] = format_rps_text(template)
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v
+        f.create_dataset("parameter_names", data=np.array(layout.names, dtype=object),
+                         dtype=_str_dtype())
+        for c in chains:
+            g = f.create_group(f"chain_{c.index:03d}")
+            g.attrs.update(seed_entropy=str(c.seed_entropy), spawn_key=list(c.spawn_key))
+            if c.stage1 is not None:
+                _write_record(g.create_group("stage1"), c.stage1)
+            if c.stage2 is not None:
+                _write_record(g.create_group("stage2"), c.stage2)
 
 
 def _read_record(g, layout: ParamLayout, template: RenderParameter) -> ChainRecord:

@@ -24,8 +24,16 @@ import numpy as np
 
 from mcmcfit.chain import ChainRecord
 
-__all__ = ["AutocorrEstimate", "integrated_time", "effective_sample_size", "split_rhat",
-           "SeriesDiagnostics", "series_diagnostics", "chain_diagnostics", "DEFAULT_COLUMNS"]
+__all__ = [
+    "DEFAULT_COLUMNS",
+    "AutocorrEstimate",
+    "SeriesDiagnostics",
+    "chain_diagnostics",
+    "effective_sample_size",
+    "integrated_time",
+    "series_diagnostics",
+    "split_rhat",
+]
 
 #: Parameter columns summarised by :func:`chain_diagnostics` when present.
 DEFAULT_COLUMNS = ("pose.yaw", "pose.pitch", "camera.focal_length", "shape.0", "color.0",

@@ -37,7 +37,7 @@ from mcmcfit.stage1_emcee import run_emcee_stage
 from proposals.light_solver import solve_sh_light
 from proposals.schedule import CENTERING_LANDMARKS, default_image_proposal, landmark_stage_proposal
 
-__all__ = ["fit", "Progress", "run_stage"]
+__all__ = ["Progress", "fit", "run_stage"]
 
 #: ``progress(stage, chain, done, total)``: stage is "landmarks" or "image", chain the
 #: 0-based chain index, done/total the steps of that stage of that chain.

@@ -35,8 +35,13 @@ from mcmcfit.likelihoods import (
     trimmed_terms,
 )
 
-__all__ = ["linearise", "ImageTarget", "prepare_image_target", "ImageLikelihood",
-           "IMAGE_LIKELIHOODS"]
+__all__ = [
+    "IMAGE_LIKELIHOODS",
+    "ImageLikelihood",
+    "ImageTarget",
+    "linearise",
+    "prepare_image_target",
+]
 
 #: Kinds of image likelihood :class:`ImageLikelihood` evaluates.
 IMAGE_LIKELIHOODS = ("independent", "collective", "trimmed")
@@ -120,7 +125,7 @@ _DEVICE_FUNCTIONS = {"independent": independent_terms, "collective": collective_
                      "trimmed": trimmed_terms}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _jitted(kind: str):
     return jax.jit(_DEVICE_FUNCTIONS[kind])
 

@@ -40,7 +40,7 @@ from albedo_model.params import ImageSize, RenderParameter
 from albedo_model.raycast import RayCaster, visible_points
 from mcmcfit.likelihoods import FACE_BOX_LANDMARKS, face_box_log_lik, landmark_log_lik
 
-__all__ = ["LandmarkTarget", "LandmarkGeometry", "FaceBoxTarget", "target_landmarks"]
+__all__ = ["FaceBoxTarget", "LandmarkGeometry", "LandmarkTarget", "target_landmarks"]
 
 
 def target_landmarks(landmarks) -> dict[str, np.ndarray]:

@@ -32,10 +32,19 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = [
-    "LOG_2PI", "pixel_log_normaliser", "landmark_log_normaliser", "ImageArrays",
-    "independent_terms", "finish_independent", "collective_terms", "finish_collective",
-    "trimmed_terms", "finish_trimmed", "landmark_log_lik", "face_box_log_lik",
     "FACE_BOX_LANDMARKS",
+    "LOG_2PI",
+    "ImageArrays",
+    "collective_terms",
+    "face_box_log_lik",
+    "finish_collective",
+    "finish_independent",
+    "finish_trimmed",
+    "independent_terms",
+    "landmark_log_lik",
+    "landmark_log_normaliser",
+    "pixel_log_normaliser",
+    "trimmed_terms",
 ]
 
 LOG_2PI = math.log(2.0 * math.pi)
@@ -166,7 +175,7 @@ def finish_trimmed(values, mask, sigma: float, fraction: float) -> float:
     dropped. ``-inf`` when nothing is kept (k = 0).
     """
     v = np.asarray(values, np.float64)[np.asarray(mask, bool)]
-    k = int(math.floor(fraction * v.shape[0]))
+    k = math.floor(fraction * v.shape[0])
     if k == 0:
         return -math.inf
     if k < v.shape[0]:

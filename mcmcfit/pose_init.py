@@ -22,7 +22,7 @@ from albedo_model.params import MoMoCoefficients, RenderParameter, default_squar
 from mcmcfit.landmark_target import LandmarkGeometry
 from mcmcfit.likelihoods import FACE_BOX_LANDMARKS
 
-__all__ = ["initial_params", "pose_from_landmarks", "pose_from_face_box"]
+__all__ = ["initial_params", "pose_from_face_box", "pose_from_landmarks"]
 
 
 def initial_params(model: MorphableModel, width: int, height: int, *, n_shape: int = 50,

@@ -34,7 +34,7 @@ import numpy as np
 
 from albedo_model.params import RenderParameter, SHLight
 
-__all__ = ["PriorConfig", "LogPrior", "normal_logpdf", "lognormal_logpdf", "std_normal_logpdf"]
+__all__ = ["LogPrior", "PriorConfig", "lognormal_logpdf", "normal_logpdf", "std_normal_logpdf"]
 
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 

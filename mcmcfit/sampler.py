@@ -41,8 +41,18 @@ from albedo_model.params import Block, RenderParameter
 from proposals.base import Proposal
 
 __all__ = [
-    "ChainState", "StepInfo", "Target", "init", "step", "run", "LANDMARK_BLOCKS",
-    "ACCEPTED", "REJECTED_LANDMARKS", "REJECTED_PRIOR", "REJECTED_IMAGE", "REJECTION_STAGES",
+    "ACCEPTED",
+    "LANDMARK_BLOCKS",
+    "REJECTED_IMAGE",
+    "REJECTED_LANDMARKS",
+    "REJECTED_PRIOR",
+    "REJECTION_STAGES",
+    "ChainState",
+    "StepInfo",
+    "Target",
+    "init",
+    "run",
+    "step",
 ]
 
 #: Blocks the landmark likelihood depends on; other moves keep the current value.

@@ -25,7 +25,7 @@ from albedo_model.params import RenderParameter
 from mcmcfit.chain import BestSample, ChainRecord
 from mcmcfit.param_vector import ParamLayout
 
-__all__ = ["EMCEE_COORDINATES", "theta_of", "params_of", "run_emcee_stage"]
+__all__ = ["EMCEE_COORDINATES", "params_of", "run_emcee_stage", "theta_of"]
 
 #: The ensemble's coordinates, in order.
 EMCEE_COORDINATES = ("yaw", "pitch", "roll", "tx", "ty", "log_f", "pp_x", "pp_y")

@@ -20,8 +20,8 @@ Layout (real lightstage data can be dropped in the same way)::
                                  the registered mesh's frame; its "stitching" block sets
                                  the silhouette margin, lambda and the reference view
         registered.ply           the template fitted to this subject (same vertex order)
-        frontal_parallel.tif ... linear camera-raw RGB, 16-bit TIFF (e.g. dcraw -4 -T -o 0),
-                                 or 16-bit PNG
+        frontal_parallel.tif ... linear camera-raw RGB, 16-bit TIFF (e.g. dcraw -4 -T -o 0;
+                                 16-bit PNGs are read as 8 bits by imageio: avoid them)
         mask.txt                 optional: 0-based vertex indices to inpaint, one per line
         multiview/, multiview.json   extra unpolarised views (not used by the build)
         truth.npz                synthetic data only: diffuse, specular (n, 3) linear sRGB
@@ -62,7 +62,11 @@ import numpy as np
 from albedo_model.errors import FormatError, InputError
 from albedo_model.io.atomic import atomic_path
 from pipeline.camera_colour import (
-    CameraColour, camera_colour, camera_colour_from_spectra, camera_sensitivities, illuminant_spd,
+    CameraColour,
+    camera_colour,
+    camera_colour_from_spectra,
+    camera_sensitivities,
+    illuminant_spd,
 )
 
 __all__ = [

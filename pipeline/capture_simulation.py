@@ -34,13 +34,21 @@ from albedo_model.io.atomic import atomic_path
 from albedo_model.io.image_io import write_png
 from albedo_model.io.mesh_export import write_mesh
 from pipeline.capture_folder import (
-    LightstageSpec, read_lightstage, write_json, write_lightstage, write_template,
+    LightstageSpec,
+    read_lightstage,
+    write_json,
+    write_lightstage,
+    write_template,
 )
 from pipeline.lightstage_camera import LightstageCamera, StitchSettings
 from pipeline.lightstage_geometry import build_rig, camera_in_mesh_frame, pose_transform
 from pipeline.lightstage_render import render_vertex_values
 from pipeline.lightstage_sim import (
-    CaptureEffects, SimulationSettings, SubjectCapture, exposure_constant, simulate_capture,
+    CaptureEffects,
+    SimulationSettings,
+    SubjectCapture,
+    exposure_constant,
+    simulate_capture,
     subject_raw_albedo,
 )
 
@@ -211,8 +219,8 @@ def _rig_spec(rig, colour_ref: dict, illuminant_ref: dict, colour, settings: Sim
 
 def simulate_captures(
     folder: str | os.PathLike, n_subjects: int, *, seed: int = 0,
-    settings: SimulationSettings = SimulationSettings(),
-    effects: CaptureEffects = CaptureEffects(), camera: str | os.PathLike | None = None,
+    settings: SimulationSettings | None = None,
+    effects: CaptureEffects | None = None, camera: str | os.PathLike | None = None,
     illuminant: str = "LED-B4", n_external: int = 0, shape_rank: int = 20, jobs: int = 1,
     progress: Callable[[str], None] | None = None,
 ) -> Path:
@@ -226,8 +234,9 @@ def simulate_captures(
     n_subjects : int
     seed : int
         Population seed (subjects, shapes, poses, noise).
-    settings : SimulationSettings
-    effects : CaptureEffects
+    settings : SimulationSettings, optional
+    effects : CaptureEffects, optional
+        Default: every effect on.
     camera : str or path, optional
         A colour-science camera name (default ``"Nikon 5100 (NPL)"``) or a
         ``lambda,R,G,B`` CSV file (copied into the folder as ``camera.csv``).
@@ -251,6 +260,8 @@ def simulate_captures(
     from pipeline.subjects import make_subjects
     from pipeline.template_head import build_template_head
 
+    settings = SimulationSettings() if settings is None else settings
+    effects = CaptureEffects() if effects is None else effects
     if n_subjects < 0 or n_external < 0 or jobs < 1:
         raise InputError("numbers of subjects and scans must be >= 0 and jobs >= 1")
     root = Path(folder)

@@ -6,8 +6,9 @@ camera of those maps. Their processing:
 
 1. sampling: the registered template is projected into the maps with the
    scan's camera (:mod:`pipeline.view_sampling`: visibility, cosine weights,
-   silhouette margin) and unobserved vertices are filled with zero gradient
-   (:func:`pipeline.stitching.stitch` with the one view);
+   silhouette margin); observed vertices keep their samples and the others
+   are filled with zero gradient (:func:`pipeline.stitching.stitch` with the
+   one view);
 2. linearisation: the maps are stored in a non-linear space; the inverse of a
    pure gamma 2.2 brings them back to linear values;
 3. ISO normalisation: the camera gain was set per subject, so each map is
@@ -16,7 +17,8 @@ camera of those maps. Their processing:
    transform; the 3x3 matrix ``M`` that maps the mean diffuse map of the
    external scans onto the mean of our scans in the least-squares sense
    (over vertices observed in both sets) is applied to every external
-   diffuse and specular map.
+   diffuse and specular map. Skin colours span little of the colour space,
+   so ``M`` is well determined only along them, which is where it is used.
 
 Folder layout: ``CAPTURES/external/<id>/scan.json`` (see
 :mod:`pipeline.capture_folder`), its maps, ``cameras.json`` (one view) and the
@@ -44,6 +46,9 @@ __all__ = [
     "ExternalEntry", "ExternalScan", "apply_colour_transform", "fit_colour_transform",
     "integrate_external", "linearise", "list_external", "sample_external_scan",
 ]
+
+
+_MIN_FIT_VERTICES = 100
 
 
 class ExternalScan(NamedTuple):
@@ -112,29 +117,51 @@ def sample_external_scan(diffuse_map: np.ndarray, specular_map: np.ndarray,
         raise InputError("no vertex of the registered mesh is visible in the scan's maps")
     res = stitch(vertices, triangles, colours, samples.weight[None].astype(np.float64),
                  lam=0.1, reference_view=0)
-    return ExternalScan(res.colour[:, :3], res.colour[:, 3:], samples.valid.copy())
+    # sampled values where observed; the zero-gradient solution only fills the rest
+    out = np.where(samples.valid[:, None], colours[0], res.colour)
+    return ExternalScan(out[:, :3], out[:, 3:], samples.valid.copy())
 
 
 def _observed_mean(maps: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-vertex mean over the samples observing it, and the fraction of samples that do."""
     w = np.asarray(observed, np.float64)
     count = w.sum(axis=0)
     mean = (np.asarray(maps, np.float64) * w[..., None]).sum(axis=0) / np.maximum(count, 1)[:, None]
-    return mean, count > 0
+    return mean, count / len(w)
 
 
-def fit_colour_transform(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+def fit_colour_transform(source: np.ndarray, target: np.ndarray, *,
+                         ridge: float = 3e-3) -> np.ndarray:
     """Least-squares ``M`` (3, 3) with ``target ~ source @ M.T`` (rows are colours).
 
     Parameters
     ----------
     source, target : (k, 3) float arrays
+    ridge : float
+        Tikhonov weight, relative to the mean squared source colour, pulling
+        ``M`` towards the per-channel scaling that fits the data. Skin colours
+        lie close to a plane of the colour space, so the plain fit is
+        undetermined across it; there (e.g. for grey specular albedo) the ridge
+        keeps the transform a channel scaling instead of an arbitrary one.
+        0: plain least squares.
+
+    Returns
+    -------
+    (3, 3) float64
     """
     a = np.asarray(source, np.float64)
     b = np.asarray(target, np.float64)
     if a.shape != b.shape or a.ndim != 2 or a.shape[1] != 3 or len(a) < 3:
         raise InputError(f"need two (k >= 3, 3) colour arrays, got {a.shape} and {b.shape}")
-    m, *_ = np.linalg.lstsq(a, b, rcond=None)
-    return m.T
+    if ridge <= 0:
+        m, *_ = np.linalg.lstsq(a, b, rcond=None)
+        return m.T
+    scale = (a * b).sum(axis=0) / np.maximum((a * a).sum(axis=0), 1e-300)
+    mu = ridge * float(np.mean(a * a)) * len(a)
+    # minimise |a M^T - b|^2 + mu |M - diag(scale)|^2, column by column of M^T
+    lhs = a.T @ a + mu * np.eye(3)
+    rhs = a.T @ b + mu * np.diag(scale)
+    return np.linalg.solve(lhs, rhs).T
 
 
 def apply_colour_transform(maps: np.ndarray, matrix: np.ndarray) -> np.ndarray:
@@ -143,7 +170,8 @@ def apply_colour_transform(maps: np.ndarray, matrix: np.ndarray) -> np.ndarray:
 
 
 def integrate_external(scans: list[ExternalScan], our_diffuse: np.ndarray,
-                       our_observed: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                       our_observed: np.ndarray, *, fit_vertices: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Step 4: colour-match the external scans to our own captures.
 
     Parameters
@@ -152,13 +180,18 @@ def integrate_external(scans: list[ExternalScan], our_diffuse: np.ndarray,
     our_diffuse : (S, n, 3) float array
         Our diffuse maps (linear sRGB).
     our_observed : (S, n) bool array
+    fit_vertices : (n,) bool array, optional
+        Restrict the fit to these vertices (e.g. skin: the eyeballs' sharp iris
+        edges are sampled poorly and would pull the fit).
 
     Returns
     -------
     diffuse, specular : (E, n, 3) float64
         The external maps after the transform.
     matrix : (3, 3) float64
-        ``M``, fitted on the mean diffuse maps over vertices observed in both sets.
+        ``M``, fitted on the mean diffuse maps over the vertices observed in
+        every scan and every capture (so that both means average over the same
+        people), or, when fewer than 100 such vertices exist, by at least half.
     """
     if not scans:
         raise InputError("no external scans to integrate")
@@ -166,7 +199,13 @@ def integrate_external(scans: list[ExternalScan], our_diffuse: np.ndarray,
     ext_s = np.stack([s.specular for s in scans])
     ext_mean, ext_ok = _observed_mean(ext_d, np.stack([s.observed for s in scans]))
     our_mean, our_ok = _observed_mean(our_diffuse, our_observed)
-    both = ext_ok & our_ok
+    allowed = np.ones(len(ext_mean), bool) if fit_vertices is None else np.asarray(
+        fit_vertices, bool)
+    # a mean over a subset of the people differs from the full mean by their skin tones:
+    # fit where everybody is observed, unless that leaves too few vertices
+    both = allowed & (ext_ok == 1.0) & (our_ok == 1.0)
+    if both.sum() < _MIN_FIT_VERTICES:
+        both = allowed & (ext_ok >= 0.5) & (our_ok >= 0.5)
     if both.sum() < 3:
         raise InputError("external scans and captures share fewer than 3 observed vertices")
     m = fit_colour_transform(ext_mean[both], our_mean[both])

@@ -44,8 +44,12 @@ from scipy.sparse.linalg import splu
 from albedo_model.errors import InputError
 from pipeline.stitching import gradient_operator
 
-__all__ = ["poisson_blend", "replace_eyeball_specular", "statistical_inpaint",
-           "statistical_guess"]
+__all__ = [
+    "poisson_blend",
+    "replace_eyeball_specular",
+    "statistical_guess",
+    "statistical_inpaint",
+]
 
 _WEAK = 1e-6
 
@@ -102,16 +106,19 @@ def statistical_guess(maps: np.ndarray, masks: np.ndarray, *,
     total = filled.sum(axis=0)
     out = np.empty_like(filled)
     for i in range(s):
-        others = np.delete(filled, i, axis=0)
+        others = np.arange(s) != i
         mean_o = (total - filled[i]) / (s - 1)
-        xo = others - mean_o
         obs = np.flatnonzero(np.repeat(~m[i], c))
         if obs.size == 0:
             out[i] = mean_o
             continue
         rows = obs[:: max(1, obs.size // max_rows)]
-        a, *_ = np.linalg.lstsq(xo[:, rows].T, filled[i, rows] - mean_o[rows], rcond=1e-10)
-        out[i] = mean_o + a @ xo
+        xo_rows = filled[np.ix_(others, rows)] - mean_o[rows]
+        a, *_ = np.linalg.lstsq(xo_rows.T, filled[i, rows] - mean_o[rows], rcond=1e-10)
+        # mean_o + a @ (others - mean_o), without copying the others
+        coef = np.zeros(s)
+        coef[others] = a
+        out[i] = mean_o * (1.0 - a.sum()) + coef @ filled
     return out.reshape(s, n, c)
 
 

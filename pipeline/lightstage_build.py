@@ -8,10 +8,13 @@ Stages (Smith et al. 2020, Sec. 3-5):
    sampled, linearised and ISO-normalised (:mod:`pipeline.external_scans`);
 2. external scans are colour-matched to the captures (3x3 transform of the
    mean diffuse maps);
-3. masked vertices (never observed, or listed in a subject's ``mask.txt``) are
-   completed by statistical inpainting and Poisson blending, and eyeball
-   specular is set to the 95th percentile of its estimates
-   (:mod:`pipeline.inpainting`); final maps are clipped to [0, 1];
+3. masked vertices (listed in a subject's ``mask.txt``, or not observed in this
+   subject though most others observe them; see
+   :func:`pipeline.model_assembly.inpainting_masks`) are completed by
+   statistical inpainting and Poisson blending, and eyeball specular is set to
+   the 95th percentile of its estimates (:mod:`pipeline.inpainting`); regions
+   few subjects observe keep the stitching's zero-gradient fill; final maps are
+   clipped to [0, 1];
 4. symmetry-augmented PCA in the paper's three variants
    (:mod:`pipeline.albedo_model_build`), a shape model from the registered
    meshes, and the leave-one-out specular generalisation of the variants
@@ -42,8 +45,12 @@ import numpy as np
 from albedo_model.errors import FormatError, InputError
 from albedo_model.io.atomic import atomic_path
 from pipeline.capture_folder import (
-    LightstageSpec, SubjectEntry, TemplateInfo, list_subjects, read_lightstage, read_template,
-    read_vertex_mask,
+    LightstageSpec,
+    SubjectEntry,
+    TemplateInfo,
+    list_subjects,
+    read_lightstage,
+    read_template,
 )
 from pipeline.external_scans import ExternalEntry, ExternalScan, list_external
 from pipeline.lightstage_processing import ProcessingOptions, SubjectAlbedo
@@ -52,7 +59,7 @@ __all__ = ["BuildReport", "BuildSettings", "build_model", "options_from_spec",
            "process_subject_entry"]
 
 #: Bump when the processing changes what it computes (invalidates cached subjects).
-PROCESSING_VERSION = 2
+PROCESSING_VERSION = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -212,13 +219,9 @@ def _work_item(args: tuple[str, str, str, str, str]) -> str:
     return Path(folder).name
 
 
-def _rmse(est: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> float:
-    return float(np.sqrt(np.mean((est[mask] - truth[mask]) ** 2))) if mask.any() else float("nan")
-
-
 def build_model(captures: str | os.PathLike, output: str | os.PathLike, *,
                 work_dir: str | os.PathLike | None = None,
-                settings: BuildSettings = BuildSettings(),
+                settings: BuildSettings | None = None,
                 progress: Callable[[str, int, int], None] | None = None) -> BuildReport:
     """Process a capture folder and write the albedo models (see the module notes).
 
@@ -232,7 +235,7 @@ def build_model(captures: str | os.PathLike, output: str | os.PathLike, *,
         ``<stem>_specgen.png`` (leave-one-out plot) and ``<stem>_build.json``.
     work_dir : path-like, optional
         Per-subject results (default ``<output>.work``).
-    settings : BuildSettings
+    settings : BuildSettings, optional
     progress : callable, optional
         ``progress(name, done, total)`` after each subject or scan.
 
@@ -242,6 +245,7 @@ def build_model(captures: str | os.PathLike, output: str | os.PathLike, *,
     """
     from pipeline.model_assembly import assemble_models
 
+    settings = BuildSettings() if settings is None else settings
     t0 = time.perf_counter()
     root = Path(captures).resolve()
     out = Path(output)
@@ -300,8 +304,3 @@ def build_model(captures: str | os.PathLike, output: str | os.PathLike, *,
         tmp.write_text(json.dumps(report._asdict(), indent=1, default=float) + "\n")
     return report
 
-
-def load_masks(entry: SubjectEntry | ExternalEntry, n_vertices: int) -> np.ndarray:
-    """A subject's user mask (``mask.txt``), or all False."""
-    mask = getattr(entry, "mask", None)
-    return read_vertex_mask(mask, n_vertices) if mask is not None else np.zeros(n_vertices, bool)

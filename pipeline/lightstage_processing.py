@@ -71,10 +71,14 @@ class ProcessingOptions:
     shading : {"leds", "flat"}
     shadows : bool
     specular_exponent : float
-    min_shading, good_shading : float
+    min_shading, min_lobe, good_shading : float
         Thresholds on the window confidence (diffuse: ``E/E_ref``; specular:
-        ``L_spec``): below ``min_shading`` a sample is invalid, below
-        ``good_shading`` its weight is reduced proportionally.
+        ``L_spec``): below ``min_shading`` (diffuse) or ``min_lobe`` (specular)
+        a sample is invalid, below ``good_shading`` its weight is reduced
+        proportionally.
+    min_cosine : float
+        Samples seen at a more grazing angle (cosine between normal and view
+        direction below this) are invalid.
     window_px : int
         Side of the least-squares window (1: per-pixel division).
     max_shadow_ambiguity : float
@@ -112,7 +116,9 @@ class ProcessingOptions:
     shadows: bool = True
     specular_exponent: float = 20.0
     min_shading: float = 0.05
+    min_lobe: float = 0.15
     good_shading: float = 0.3
+    min_cosine: float = 0.0
     window_px: int = 3
     max_shadow_ambiguity: float = 0.2
     registration_px: float = 1.0
@@ -268,13 +274,13 @@ def view_albedo(parallel: np.ndarray, perpendicular: np.ndarray, camera: Lightst
     base = samples.weight.astype(np.float64)
     t = options.colour.matrix
 
-    def albedo(colour: np.ndarray, confidence: np.ndarray):
-        ok = (base > 0) & (confidence >= options.min_shading)
+    def albedo(colour: np.ndarray, confidence: np.ndarray, least: float):
+        ok = (base > 0) & (base >= options.min_cosine) & (confidence >= least)
         wt = np.where(ok, base * np.minimum(1.0, confidence / options.good_shading), 0.0)
         return np.where(ok[:, None], np.asarray(colour, float) @ t.T, 0.0), wt
 
-    d, wd = albedo(diff_v, conf[:, 0])
-    s, ws = albedo(spec, conf[:, 1])
+    d, wd = albedo(diff_v, conf[:, 0], options.min_shading)
+    s, ws = albedo(spec, conf[:, 1], options.min_lobe)
     return ViewAlbedo(d, s, wd, ws)
 
 
@@ -314,7 +320,7 @@ def process_subject(vertices: np.ndarray, triangles: np.ndarray,
                     cameras: Sequence[LightstageCamera], parallel: Sequence[np.ndarray],
                     perpendicular: Sequence[np.ndarray], *, iso: float,
                     options: ProcessingOptions,
-                    stitching: StitchSettings = StitchSettings()) -> SubjectAlbedo:
+                    stitching: StitchSettings | None = None) -> SubjectAlbedo:
     """Stitched diffuse and specular albedo of one subject from its photometric views.
 
     Parameters
@@ -326,13 +332,14 @@ def process_subject(vertices: np.ndarray, triangles: np.ndarray,
     parallel, perpendicular : sequences of (H, W, 3) images, one per view
     iso : float
     options : ProcessingOptions
-    stitching : StitchSettings
+    stitching : StitchSettings, optional
         Silhouette margin, lambda and reference view (the capture's ``cameras.json``).
 
     Returns
     -------
     SubjectAlbedo
     """
+    stitching = StitchSettings() if stitching is None else stitching
     if not (len(cameras) == len(parallel) == len(perpendicular)) or not cameras:
         raise InputError(f"{len(cameras)} cameras, {len(parallel)} parallel and "
                          f"{len(perpendicular)} perpendicular images: need one of each per view")

@@ -1,10 +1,12 @@
 """Ray-cast images of per-vertex values seen by a lightstage camera.
 
-One primary ray per pixel centre (through the camera's lens distortion), the
-nearest front-facing hit, and the per-vertex values interpolated with the
-hit's barycentric coordinates (Gouraud). Background pixels are 0. Camera-frame
-ray directions depend only on the intrinsics and are cached, so the iterative
-undistortion runs once per camera model.
+One primary ray per pixel centre (through the camera's lens distortion) and
+the nearest front-facing hit (:func:`cast_pixels`, which keeps the hit
+triangle, barycentric weights and depth so that callers can shade per pixel),
+or directly an image of per-vertex values interpolated with the barycentric
+weights (Gouraud; :func:`render_vertex_values`). Background pixels are 0.
+Camera-frame ray directions depend only on the intrinsics and are cached, so
+the iterative undistortion runs once per camera model.
 
 Imports only :mod:`albedo_model` and :mod:`pipeline.lightstage_camera`.
 """

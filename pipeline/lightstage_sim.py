@@ -1,8 +1,11 @@
 """Capture simulator: a subject in the polarised LED lightstage, three poses, images.
 
-Image formation (camera raw, linear, image values in [0, 1])::
+Image formation (camera raw, linear, image values in [0, 1]) at the surface
+point ``x`` a pixel sees, with ``v`` the direction to the camera::
 
-    raw(pixel) = g kappa [ E(x)/E_ref a_d(x) (x) filter + L_spec(x, v) a_s(x) ]  + noise
+    perpendicular = g kappa  t E(x)/E_ref a_d(x)                      + noise
+    parallel      = g kappa (t E(x)/E_ref a_d(x) + L_spec(x, v) a_s(x)) + noise
+    extra view    = g kappa (  E(x)/E_ref a_d(x) + L_spec(x, v) a_s(x)) + noise
 
 * ``a_d`` (n, 3): the *raw albedo* of a vertex, ``C^T (e * R)`` for skin with
   spectral reflectance ``R(melanin, blood)`` (:mod:`pipeline.skin_spectral`)
@@ -20,12 +23,22 @@ Image formation (camera raw, linear, image values in [0, 1])::
 * ``kappa``: exposure, so that a white diffuser at the dome centre facing the
   photometric camera records ``white_level`` in its brightest raw channel at
   ISO 100 without a filter; ``g``: ISO / 100.
-* filter: the polariser pair (:mod:`pipeline.polarisation`); the 7 extra
-  cameras are unfiltered and see ``D + S``. Their images are written as
-  8-bit gamma-encoded sRGB (``T``, pure 2.2 power), as a JPEG camera would.
+* ``t``: the polarisers' transmission of depolarised (diffuse) light
+  (:mod:`pipeline.polarisation`); the 7 extra cameras are unfiltered. Their
+  images are written as 8-bit gamma-encoded sRGB (``T``, pure 2.2 power), as
+  a JPEG camera would.
+* noise: Poisson shot noise in photo-electrons plus Gaussian read noise,
+  clipping at 1 (saturation), 16-bit quantisation.
+* per pose: a small random head rotation and shift, and (misalignment effect)
+  a smooth random displacement of the surface, so the three poses do not
+  quite agree with the registered mesh.
 
-Per-vertex shading is interpolated over triangles (Gouraud) and ray cast
-through the lens model (:mod:`pipeline.lightstage_render`).
+Images are ray cast through the lens model (:mod:`pipeline.lightstage_render`).
+In the photometric views the albedo and the irradiance are interpolated from
+the vertices and the specular lobe is evaluated per pixel with the
+interpolated normal (highlights are sharper than the mesh); the extra views
+interpolate per-vertex radiance (Gouraud). Self-shadowing: LEDs hidden from a
+vertex by the mesh (occlusion rays) do not light it.
 
 Effects (:class:`CaptureEffects`) are switches; an effect that is off is not
 computed: no specular lobe, no occlusion rays, no noise draws, no
@@ -47,7 +60,10 @@ from albedo_model.raycast import RayCaster
 from pipeline.camera_colour import CameraColour
 from pipeline.lightstage_camera import LightstageCamera
 from pipeline.lightstage_geometry import (
-    POSES, Rig, camera_in_mesh_frame, pose_transform,
+    POSES,
+    Rig,
+    camera_in_mesh_frame,
+    pose_transform,
 )
 from pipeline.lightstage_render import cast_pixels, render_vertex_values
 from pipeline.lightstage_shading import LedShading, reference_irradiance
@@ -234,8 +250,8 @@ def _auto_iso(clean: list[np.ndarray], coverage: list[np.ndarray],
 def simulate_capture(
     vertices: np.ndarray, triangles: np.ndarray, raw_diffuse: np.ndarray,
     raw_specular: np.ndarray, *, rig: Rig, colour: CameraColour,
-    settings: SimulationSettings = SimulationSettings(),
-    effects: CaptureEffects = CaptureEffects(), rng: np.random.Generator,
+    settings: SimulationSettings | None = None,
+    effects: CaptureEffects | None = None, rng: np.random.Generator,
 ) -> SubjectCapture:
     """Simulate the three-pose polarised capture of one subject.
 
@@ -251,8 +267,9 @@ def simulate_capture(
         (:func:`pipeline.lightstage_geometry.build_rig`).
     colour : CameraColour
         The capture camera (extra images are encoded with its transform).
-    settings : SimulationSettings
-    effects : CaptureEffects
+    settings : SimulationSettings, optional
+    effects : CaptureEffects, optional
+        Default: every effect on.
     rng : numpy Generator
         Pose jitter, misalignment and noise are drawn from it.
 
@@ -260,6 +277,8 @@ def simulate_capture(
     -------
     SubjectCapture
     """
+    settings = SimulationSettings() if settings is None else settings
+    effects = CaptureEffects() if effects is None else effects
     v = np.asarray(vertices, float)
     tri = np.asarray(triangles)
     a_d = np.asarray(raw_diffuse, float)

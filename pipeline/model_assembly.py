@@ -26,7 +26,7 @@ from pipeline.external_scans import ExternalScan, integrate_external
 from pipeline.inpainting import replace_eyeball_specular, statistical_inpaint
 from pipeline.shape_model import mirror_flat
 
-__all__ = ["assemble_models", "shape_model_from_meshes"]
+__all__ = ["assemble_models", "inpainting_masks", "shape_model_from_meshes"]
 
 
 def shape_model_from_meshes(vertices: np.ndarray, symmetry: np.ndarray | None, *,
@@ -36,6 +36,21 @@ def shape_model_from_meshes(vertices: np.ndarray, symmetry: np.ndarray | None, *
     if symmetry is not None:
         flat = np.vstack([flat, np.stack([mirror_flat(f, symmetry) for f in flat])])
     return pca_from_data(flat, rank=rank)
+
+
+def inpainting_masks(observed: np.ndarray, user: np.ndarray, *,
+                     min_observed: float = 0.5) -> np.ndarray:
+    """Which vertices of each sample statistical inpainting fills, (S, n) bool.
+
+    The user's masks (artefacts), and the vertices a sample did not observe
+    where at least ``min_observed`` of the samples did: there the others carry
+    statistical information. Regions few samples observe keep the stitching's
+    zero-gradient fill, which is smooth, whereas a statistical guess learnt from
+    fills would only add structure that nobody measured.
+    """
+    obs = np.asarray(observed, bool)
+    common = obs.mean(axis=0) >= min_observed
+    return np.asarray(user, bool) | (~obs & common[None, :])
 
 
 def _float32(part: PCAPart) -> PCAPart:
@@ -130,7 +145,8 @@ def assemble_models(results: dict, template: TemplateInfo, spec: LightstageSpec,
     if ext:
         scans = [ExternalScan(d["diffuse"], d["specular"], d["diffuse_observed"].astype(bool))
                  for _, _, d in ext]
-        ext_d, ext_s, colour_matrix = integrate_external(scans, diff, obs_d & ~user)
+        ext_d, ext_s, colour_matrix = integrate_external(scans, diff, obs_d & ~user,
+                                                         fit_vertices=~template.eyeballs)
         diff = np.concatenate([diff, ext_d])
         spec_maps = np.concatenate([spec_maps, ext_s])
         ext_obs = np.stack([s.observed for s in scans])
@@ -143,9 +159,10 @@ def assemble_models(results: dict, template: TemplateInfo, spec: LightstageSpec,
     obs_d &= ~user
     obs_s &= ~user
     t1 = time.perf_counter()
-    final_d = statistical_inpaint(diff, ~obs_d, template.vertices, template.triangles,
+    mask_d, mask_s = inpainting_masks(obs_d, user), inpainting_masks(obs_s, user)
+    final_d = statistical_inpaint(diff, mask_d, template.vertices, template.triangles,
                                   iterations=settings.inpaint_iterations)
-    final_s = statistical_inpaint(spec_maps, ~obs_s, template.vertices, template.triangles,
+    final_s = statistical_inpaint(spec_maps, mask_s, template.vertices, template.triangles,
                                   iterations=settings.inpaint_iterations)
     for i in range(len(final_s)):
         final_s[i] = replace_eyeball_specular(final_s[i], template.eyeballs, obs_s[i])

@@ -100,3 +100,21 @@ def test_coefficients_for_checks_rank_and_missing_parts():
     assert coefficients_for(None, [0.0, 0.0], "expression").shape == (0,)
     with pytest.raises(InputError, match="non-finite"):
         coefficients_for(a, [np.nan], "shape")
+
+
+def test_plan_gives_block_deltas_of_the_transposed_basis():
+    a, b = part(9), part(10)
+    up = InstanceUpdater(refresh_every=10)
+    old = np.zeros(a.rank)
+    new = old.copy()
+    new[[3, 4, 9]] = (1.0, -2.0, 0.5)
+    assert up.plan((a, b), old, old.copy(), 0) is None
+    idx, delta = up.plan((a, b), old, new, 0)
+    np.testing.assert_array_equal(idx, [3, 4, 9])
+    bt = up.transposed((a, b))
+    assert bt.shape == (a.rank, a.dim + b.dim) and bt.dtype == np.float32
+    moved = np.concatenate([a.instance(old), b.instance(old)]) + delta @ bt[idx]
+    np.testing.assert_allclose(moved, np.concatenate([a.instance(new), b.instance(new)]),
+                               rtol=1e-5, atol=2e-4)
+    assert up.plan((a, b), old, new, 9) == "full"  # refresh due
+    assert up.plan((a, b), old, np.ones(a.rank), 0) == "full"  # most coefficients changed

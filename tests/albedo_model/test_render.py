@@ -246,19 +246,22 @@ def test_steps_reuse_cached_pixel_attributes():
     moved = dict(moves(state.params, rng))
     light = renderer.update(state, moved[Block.LIGHT], Block.LIGHT)
     assert light.pixel_geometry is state.pixel_geometry and light.pixel_albedo is state.pixel_albedo
+    assert light.pixel_light is not state.pixel_light
     albedo = renderer.update(state, moved[Block.ALBEDO], Block.ALBEDO)
     assert albedo.pixel_hits is state.pixel_hits and albedo.pixel_geometry is state.pixel_geometry
     assert albedo.pixel_albedo is not state.pixel_albedo
+    assert albedo.pixel_light is state.pixel_light  # an albedo step evaluates no light
+    colour = renderer.update(state, moved[Block.COLOR], Block.COLOR)
+    assert colour.pixel_light is state.pixel_light and colour.pixel_albedo is state.pixel_albedo
     pose = renderer.update(state, moved[Block.POSE], Block.POSE)
     assert pose.pixel_geometry is not state.pixel_geometry and pose.shape is state.shape
 
 
 def test_long_chain_of_block_updates_matches_full_render():
     """Hundreds of accepted float32 block updates (with periodic refresh) stay exact."""
-    from albedo_model.instance_updates import InstanceUpdater
     model = bumpy_model(k=6)
     renderer = Renderer(model, gamma=True)
-    renderer._updater = InstanceUpdater(refresh_every=64)
+    renderer._instances.updater.refresh_every = 64
     start = scene(sh=SHLight.frontal())
     start = start._replace(momo=MoMoCoefficients(np.full(6, 0.1), np.full(6, -0.1), np.zeros(0)))
     state = renderer.init_state(start)
@@ -280,6 +283,9 @@ def test_long_chain_of_block_updates_matches_full_render():
     np.testing.assert_allclose(renderer.image(state).image, fresh.image, atol=3e-5)
     np.testing.assert_allclose(state.shape, model.shape.instance(state.params.momo.shape),
                                atol=1e-4)
+    c = state.params.momo.color
+    np.testing.assert_allclose(state.diffuse, model.diffuse.instance(c), atol=1e-5)
+    np.testing.assert_allclose(state.specular, model.specular.instance(c), atol=1e-5)
 
 
 def test_light_change_that_switches_effects_on():
@@ -295,3 +301,41 @@ def test_light_change_that_switches_effects_on():
     assert cand.effects.directional and cand.pixel_geometry.view is not None
     np.testing.assert_allclose(renderer.image(cand).image,
                                Renderer(model, specular=False).render(lit).image, atol=2e-5)
+
+
+def test_albedo_steps_with_independent_specular_albedo():
+    """Without shared coefficients only the diffuse row moves; the specular stays its mean."""
+    import dataclasses
+    shared = bumpy_model()
+    model = dataclasses.replace(shared, shared_albedo=False)
+    renderer = Renderer(model, gamma=True)
+    state = renderer.init_state(scene(sh=SHLight.frontal()))
+    m = state.params.momo
+    for step in range(3):
+        c = m.color.copy()
+        c[step % 3] += 0.7
+        p = state.params._replace(momo=m._replace(color=c))
+        state = renderer.accept(renderer.update(state, p, Block.ALBEDO))
+        m = state.params.momo
+    np.testing.assert_allclose(state.specular, model.specular.mean, atol=1e-6)
+    np.testing.assert_allclose(state.diffuse, model.diffuse.instance(m.color), atol=1e-5)
+    np.testing.assert_allclose(renderer.image(state).image,
+                               Renderer(model, gamma=True).render(state.params).image, atol=2e-5)
+
+
+def test_rays_are_reused_only_for_the_same_camera_and_pose():
+    """A shape step keeps the last rays; poses with array fields are compared safely."""
+    model = bumpy_model()
+    renderer = Renderer(model)
+    params = scene(sh=SHLight.frontal())
+    params = params._replace(pose=params.pose._replace(translation=np.array([4.0, -3.0, -700.0])))
+    state = renderer.init_state(params)
+    m = params.momo
+    shaped = params._replace(momo=m._replace(shape=m.shape + 0.5))
+    cand = renderer.update(state, shaped, Block.SHAPE)
+    np.testing.assert_allclose(renderer.image(cand).image,
+                               Renderer(model).render(shaped).image, atol=2e-5)
+    renderer.reject()
+    turned = params._replace(pose=params.pose._replace(yaw=0.5))
+    np.testing.assert_allclose(renderer.image(renderer.update(state, turned, Block.POSE)).image,
+                               Renderer(model).render(turned).image, atol=2e-5)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.extend
 import jax.numpy as jnp
@@ -15,7 +17,7 @@ from albedo_model.params import (
 )
 from albedo_model.interpolation import interpolate_albedo, interpolate_geometry, pixel_hits
 from albedo_model.shading import (
-    PACKED_SIZE, Effects, ShadingParams, build_shader, effects_for, encode_gamma,
+    PACKED_SIZE, combine_pixels, pixel_light, Effects, ShadingParams, build_shader, effects_for, encode_gamma,
     pack_shading_params, pixel_shader_function, shade, shade_pixels, shader_function,
     shading_params, to_hwc, unpack_shading_params,
 )
@@ -467,3 +469,36 @@ def test_pixel_shader_has_no_gathers_and_skips_switched_off_effects():
     assert {"shadow", "light_direction", "light_shininess", "color_gain",
             "color_offset"} <= used_all
     assert prims_all.count("log") > prims_spec.count("log")
+
+
+def test_light_transport_times_albedo_is_the_image():
+    """shade_pixels = combine(pixel_light(geometry), albedo), and the light reads no albedo."""
+    s = Scene(15)
+    rng = np.random.default_rng(16)
+    light = SHLight(rng.normal(0, 0.25, (9, 3)) + SHLight.frontal().coefficients)
+    dl = DirectionalLight((0.1, 0.1, 0.2), (0.5, 0.4, 0.3), (0.3, 0.2, 1.0), (0.2, 0.1, 0.1), 12.)
+    sp = shading_params(scene_params(light, dl, COLOR, exponent=10.0), ROT)
+    shadow = jnp.asarray(s.shadow)
+    for eff in (Effects(), Effects(specular=True, color_transform=True),
+                Effects(specular=True, directional=True, shadows=True, gamma=True),
+                Effects(directional=True, directional_specular_map=True)):
+        _, geometry, albedo, full = _split_shade(eff, s, sp, shadow)
+        transport = pixel_light(eff, geometry, sp, shadow)
+        assert (transport.specular is None) == (not (eff.specular or eff.directional_specular_map))
+        assert (transport.constant is None) == (not eff.directional or eff.directional_specular_map)
+        out = combine_pixels(eff, transport, albedo, geometry.mask, sp)
+        np.testing.assert_allclose(rgb_of(out), rgb_of(full), atol=1e-6)
+        # linear in the albedo: doubling it (without clamp or transform) doubles D + S
+        if not (eff.color_transform or eff.gamma or eff.directional):
+            twice = albedo._replace(diffuse=tuple(2 * c for c in albedo.diffuse),
+                                    specular=None if albedo.specular is None
+                                    else tuple(2 * c for c in albedo.specular))
+            lin = eff._replace(clamp=False)
+            a = rgb_of(combine_pixels(lin, transport, albedo, geometry.mask, sp))
+            b = rgb_of(combine_pixels(lin, transport, twice, geometry.mask, sp))
+            hit = s.prim_id >= 0
+            np.testing.assert_allclose(b[hit], 2 * a[hit], rtol=1e-6, atol=1e-7)
+    closed = jax.make_jaxpr(functools.partial(pixel_light, Effects(specular=True)))(
+        geometry, sp, shadow)
+    prims = _primitives(closed.jaxpr)
+    assert "gather" not in prims and prims.count("exp") >= 1

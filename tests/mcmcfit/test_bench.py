@@ -19,6 +19,7 @@ def test_bench_render_smoke(capsys):
                  "--grid", "40", "--quiet"]) == 0
     out = capsys.readouterr().out
     assert re.search(r"cores: \d+ +ray-cast threads: [12] +embree update: (refit|rebuild)", out)
+    assert re.search(r"yardstick: 1-thread ray cast .* \d+\.\d ms", out)
     rows = [line.split() for line in out.splitlines()
             if re.match(r"\s*\d+x\d+ +[a-z]+ +\d+\.\d+ ", line)]
     assert [(r[0], r[1]) for r in rows] == [(s, k) for s in ("24x24",) for k in KINDS]
@@ -26,7 +27,7 @@ def test_bench_render_smoke(capsys):
         ours, no_spec, extra, naive, ratio = (float(x) for x in r[2:7])
         assert all(np.isfinite(v) and v > 0 for v in (ours, no_spec, naive, ratio))
         assert extra == pytest.approx(ours - no_spec, abs=0.011)
-        assert ratio == pytest.approx(naive / ours, rel=0.02, abs=0.06)
+        assert ratio == pytest.approx(naive / ours, rel=0.05, abs=0.06)  # printed rounded
         assert 0.3 < float(r[7].rstrip("%")) / 100 < 0.9  # face coverage
     assert re.search(r"24x24 mixed .*: \d+ steps/s, naive \d+\.\d steps/s", out)
 

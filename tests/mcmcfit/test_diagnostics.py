@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mcmcfit.diagnostics import effective_sample_size, integrated_time, series_diagnostics, split_rhat
+from mcmcfit.diagnostics import (
+    effective_sample_size,
+    integrated_time,
+    series_diagnostics,
+    split_rhat,
+)
 
 
 def ar1(rng, phi, n, chains=1):

@@ -148,7 +148,7 @@ def test_identity_moves_and_minus_infinity_states():
     # from a state whose image factor is -inf, a move to another -inf state is accepted
     stuck = s0._replace(log_lik_img=-math.inf)
     target.log_lik_image = lambda rs: -math.inf
-    s2, info = step(np.random.default_rng(3), stuck, target, Rotation("yaw", 1e-6))
+    _s2, info = step(np.random.default_rng(3), stuck, target, Rotation("yaw", 1e-6))
     assert info.rejected_by != REJECTED_IMAGE
 
 
@@ -178,7 +178,7 @@ def small_model():
     return small_face_model()
 
 
-TRUE_POSE = dict(yaw=0.35, pitch=-0.15, roll=0.06, translation=(15.0, -10.0, -1100.0))
+TRUE_POSE = {"yaw": 0.35, "pitch": -0.15, "roll": 0.06, "translation": (15.0, -10.0, -1100.0)}
 
 
 def _landmark_clicks(model, params, noise, seed):

@@ -10,12 +10,21 @@ from albedo_model.raycast import RayCaster
 from pipeline import lightstage_sim
 from pipeline.camera_colour import camera_colour
 from pipeline.lightstage_geometry import (
-    DOME_RADIUS_MM, POSES, build_rig, camera_in_mesh_frame, dome_leds, look_at_camera,
+    DOME_RADIUS_MM,
+    POSES,
+    build_rig,
+    camera_in_mesh_frame,
+    dome_leds,
+    look_at_camera,
     pose_transform,
 )
 from pipeline.lightstage_shading import LedShading, reference_irradiance, specular_lobe
 from pipeline.lightstage_sim import (
-    CaptureEffects, SimulationSettings, exposure_constant, misalignment_field, simulate_capture,
+    CaptureEffects,
+    SimulationSettings,
+    exposure_constant,
+    misalignment_field,
+    simulate_capture,
     subject_raw_albedo,
 )
 from pipeline.polarisation import polarised_pair, separate_polarisation

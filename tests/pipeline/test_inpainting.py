@@ -5,7 +5,10 @@ import pytest
 
 from albedo_model.errors import InputError
 from pipeline.inpainting import (
-    poisson_blend, replace_eyeball_specular, statistical_guess, statistical_inpaint,
+    poisson_blend,
+    replace_eyeball_specular,
+    statistical_guess,
+    statistical_inpaint,
 )
 
 

@@ -10,7 +10,11 @@ from pipeline.lightstage_camera import StitchSettings
 from pipeline.lightstage_geometry import build_rig
 from pipeline.lightstage_processing import ProcessingOptions, process_subject, view_albedo
 from pipeline.lightstage_sim import (
-    CaptureEffects, SimulationSettings, exposure_constant, simulate_capture, subject_raw_albedo,
+    CaptureEffects,
+    SimulationSettings,
+    exposure_constant,
+    simulate_capture,
+    subject_raw_albedo,
 )
 from pipeline.subjects import make_subjects
 
@@ -118,7 +122,7 @@ def test_subject_albedo_is_recovered_with_every_effect_on(stand_in_head, noisy_c
 
 
 def test_saturated_pixels_give_no_sample(stand_in_head, noisy_capture):
-    subj, cap, rig, colour = noisy_capture
+    _subj, cap, rig, colour = noisy_capture
     para = cap.parallel[0].copy()
     para[40:80, 40:80] = 65535
     opts = _options(rig, colour)
@@ -137,7 +141,7 @@ def test_saturated_pixels_give_no_sample(stand_in_head, noisy_capture):
 
 
 def test_flat_lightstage_leaves_the_shading_in(stand_in_head, noisy_capture):
-    subj, cap, rig, colour = noisy_capture
+    _subj, cap, rig, colour = noisy_capture
     args = (cap.parallel[0], cap.perpendicular[0], cap.cameras[0], cap.registered,
             stand_in_head.triangles)
     leds = view_albedo(*args, iso=cap.iso, options=_options(rig, colour),
