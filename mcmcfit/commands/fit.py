@@ -1,0 +1,118 @@
+"""``mcmcfit fit IMAGE -o OUT``: fit one photograph and write its result folder."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+import warnings
+from pathlib import Path
+
+__all__ = ["register", "run", "add_schedule_arguments", "config_from_args", "cli_warnings"]
+
+
+def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "10000",
+                           landmark_default: str = "5000", chains_default: str = "2") -> None:
+    """Options of the sampling schedule and the output (shared with ``mcmcfit demo``)."""
+    p.add_argument("--steps", type=int, metavar="N",
+                   help=f"image-stage steps per chain (default {steps_default})")
+    p.add_argument("--landmark-steps", type=int, metavar="N",
+                   help=f"landmark-stage steps per chain (default {landmark_default})")
+    p.add_argument("--chains", type=int, metavar="K",
+                   help=f"independent chains (default {chains_default})")
+    p.add_argument("--seed", type=int, default=0, help="root seed of the fit (default 0)")
+    p.add_argument("--config", metavar="F.json",
+                   help="fit settings as JSON (a config.json of an earlier fit); "
+                   "--steps/--landmark-steps/--chains override it")
+    p.add_argument("--force", action="store_true", help="replace an existing output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def config_from_args(args: argparse.Namespace, **defaults):
+    """The FitConfig of ``--config`` (or the defaults) with the schedule options applied."""
+    from albedo_model.errors import InputError
+    from mcmcfit.fit_config import FitConfig
+
+    if args.config:
+        path = Path(args.config)
+        if not path.is_file():
+            raise InputError(f"{path}: config file not found")
+        try:
+            cfg = FitConfig.from_json(path.read_text(encoding="utf-8"))
+        except ValueError as exc:
+            raise InputError(f"{path}: not a fit config ({exc})") from None
+    else:
+        cfg = FitConfig(**defaults)
+    changes = {k: v for k, v in (("steps", args.steps), ("landmark_steps", args.landmark_steps),
+                                 ("chains", args.chains)) if v is not None}
+    return cfg.replace(**changes) if changes else cfg
+
+
+@contextlib.contextmanager
+def cli_warnings(command: str):
+    """Show the project's own warnings as one line each: ``mcmcfit CMD: warning: ...``.
+
+    Warnings raised in the project's packages (e.g. landmark names the model does
+    not know) are for the user; those of libraries keep Python's format.
+    """
+    from mcmcfit.fit_job import FitWarning
+
+    original = warnings.showwarning
+    root = Path(__file__).resolve().parents[2]
+    ours = tuple(str(root / pkg) for pkg in ("mcmcfit", "albedo_model", "proposals", "pipeline"))
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, FitWarning) or (
+                issubclass(category, UserWarning) and str(filename).startswith(ours)):
+            print(f"mcmcfit {command}: warning: {message}", file=sys.stderr)
+        else:
+            original(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FitWarning)
+        warnings.filterwarnings("always", category=UserWarning,
+                                module=r"(mcmcfit|albedo_model|proposals|pipeline)(\.|$)")
+        warnings.showwarning = show
+        yield
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "fit", help="fit a face image: posterior albedo, uncertainty, report",
+        description="Fit the morphable albedo model to one photograph (landmark stage, then "
+        "image stage, for several chains) and write a result folder: posterior.npz, best.rps, "
+        "mean.rps, fit.png, albedo and uncertainty maps, mesh.ply, chain.h5, summary.json, "
+        "report.html. The folder appears complete or not at all.",
+    )
+    p.add_argument("image", help="photograph (PNG or JPEG, sRGB)")
+    p.add_argument("--landmarks", metavar="F.tlms|F.pts",
+                   help="2-D landmarks: TLMS (Basel names) or iBUG 68-point .pts")
+    p.add_argument("--face-box", metavar="x,y,w,h",
+                   help="face box in pixels, used when there are no landmarks")
+    p.add_argument("--model", default="default", help="model file (.h5) or 'default'")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="result folder to create")
+    add_schedule_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from mcmcfit.fit_job import run_fit_job
+    from mcmcfit.fit_progress import FitProgressBar
+
+    cfg = config_from_args(args)
+    out = Path(args.output)
+    with cli_warnings("fit"), FitProgressBar(cfg.chains, disable=args.quiet) as bar:
+        summary = run_fit_job(args.image, out, landmarks_path=args.landmarks,
+                              face_box=args.face_box, model=args.model, config=cfg,
+                              seed=args.seed, progress=bar, force=args.force,
+                              model_progress=not args.quiet)
+    print(_done_line(out, summary))
+    return 0
+
+
+def _done_line(out: Path, summary: dict) -> str:
+    t = summary.get("timings", {})
+    rmse = summary.get("landmark_rmse_px")
+    lm = f", landmark RMSE {rmse:.2f} px" if rmse is not None else ""
+    return (f"wrote {out}/ ({len(summary.get('files', []))} files; fit {t.get('total_s', 0):.1f} s"
+            f"{lm}); open {out / 'report.html'}")

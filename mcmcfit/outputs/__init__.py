@@ -1,0 +1,17 @@
+"""Everything a fit writes into its result folder.
+
+:func:`write_fit_outputs` (:mod:`mcmcfit.outputs.folder`) writes, into a folder
+the caller makes atomic (:func:`mcmcfit.fit_job.atomic_folder`): the posterior
+albedo (``posterior.npz``), best and mean parameters (``.rps``), pictures of
+the fit, the albedo and its uncertainty, the mean mesh, the chains, the summary
+and the HTML report. The pieces live in small modules: posterior albedo
+(:mod:`~mcmcfit.outputs.albedo_summary`), per-vertex values as pictures
+(:mod:`~mcmcfit.outputs.vertex_maps`), matplotlib figures
+(:mod:`~mcmcfit.outputs.figures`), ``summary.json``
+(:mod:`~mcmcfit.outputs.summary`) and errors against a known truth
+(:mod:`~mcmcfit.outputs.truth`).
+"""
+
+from mcmcfit.outputs.folder import OUTPUT_FILES, write_fit_outputs
+
+__all__ = ["OUTPUT_FILES", "write_fit_outputs"]

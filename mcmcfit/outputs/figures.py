@@ -1,0 +1,149 @@
+"""Matplotlib figures of a fit: uncertainty maps with a colour bar, traces, landmarks.
+
+Figures are drawn with the Agg backend on figure objects (no pyplot state) and
+written as PNG.
+
+This module imports :mod:`mcmcfit` (the fit result) and matplotlib.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from mcmcfit.fit_result import FitResult
+
+__all__ = ["save_scalar_map", "save_traces", "save_landmark_figure"]
+
+
+def _figure(width: float, height: float):
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(width, height), dpi=100)
+
+
+def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray, np.ndarray]], *,
+                    vmax: float, label: str, cmap: str = "viridis") -> None:
+    """Scalar pictures side by side on one colour scale, with a colour bar.
+
+    Parameters
+    ----------
+    path : path-like
+        PNG to write.
+    panels : list of (title, image (H, W) float, mask (H, W) bool)
+        Pixels outside the mask are drawn white.
+    vmax : float
+        Top of the colour scale (the bottom is 0).
+    label : str
+        Colour-bar label (quantity and unit).
+    """
+    n = len(panels)
+    fig = _figure(3.0 * n + 1.3, 3.4)
+    right = 3.0 * n / (3.0 * n + 1.3)
+    fig.subplots_adjust(left=0.02, right=right, top=0.9, bottom=0.03, wspace=0.05)
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    im = None
+    for ax, (title, img, mask) in zip(axes, panels):
+        shown = np.ma.masked_array(np.asarray(img, np.float64), mask=~np.asarray(mask, bool))
+        im = ax.imshow(shown, cmap=cmap, vmin=0.0, vmax=max(float(vmax), 1e-12),
+                       interpolation="nearest")
+        ax.set_title(title, fontsize=9)
+        ax.set_axis_off()
+    cax = fig.add_axes((right + 0.02, 0.1, 0.035, 0.75))
+    cbar = fig.colorbar(im, cax=cax)
+    cbar.set_label(label, fontsize=8)
+    cbar.ax.tick_params(labelsize=7)
+    fig.savefig(path)
+
+
+def save_traces(path: str | os.PathLike, result: FitResult,
+                columns: tuple[str, ...] = ("pose.yaw", "pose.pitch", "color.0", "shape.0")) -> None:
+    """Per-step log densities of both stages and a few sampled parameters, per chain."""
+    cols = [c for c in columns if c in result.layout.names]
+    fig = _figure(11.0, 5.0 if cols else 2.6)
+    fig.subplots_adjust(left=0.07, right=0.99, top=0.93, bottom=0.1, wspace=0.4, hspace=0.5)
+    grid = fig.subplots(2 if cols else 1, 4, squeeze=False)
+    series = [(1, "landmark stage: log p + log L_lm", lambda r: r.log_posterior),
+              (2, "image stage: log posterior", lambda r: r.log_posterior),
+              (2, "image stage: log L_img", lambda r: r.log_lik_img),
+              (2, "image stage: log L_lm", lambda r: r.log_lik_lm)]
+    for ax, (stage, title, get) in zip(grid[0], series):
+        recs = result.records(stage)
+        if not recs:
+            ax.set_visible(False)
+            continue
+        for ci, rec in enumerate(recs):
+            y = np.asarray(get(rec), np.float64)
+            x = np.arange(y.shape[0]) if rec.steps else rec.sample_step
+            ax.plot(x, y, lw=0.7, label=f"chain {ci}")
+        _style(ax, title)
+        _robust_ylim(ax, [np.asarray(get(r), np.float64) for r in recs])
+        if len(recs) > 1:
+            ax.legend(fontsize=7)
+    if cols:
+        recs = result.records(2) or result.records(1)
+        for j, ax in enumerate(grid[1]):
+            if j >= len(cols) or not recs:
+                ax.set_visible(False)
+                continue
+            k = result.layout.index(cols[j])
+            for ci, rec in enumerate(recs):
+                ax.plot(rec.sample_step, rec.samples[:, k], lw=0.7, label=f"chain {ci}")
+            _style(ax, f"samples: {cols[j]}")
+    fig.savefig(path)
+
+
+def _style(ax, title: str) -> None:
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel("step", fontsize=8)
+    ax.tick_params(labelsize=7)
+
+
+def _robust_ylim(ax, series: list[np.ndarray]) -> None:
+    """Zoom on the bulk of the trace: the early burn-in can be orders of magnitude below."""
+    y = np.concatenate([s[np.isfinite(s)] for s in series]) if series else np.zeros(0)
+    if y.size < 10:
+        return
+    lo, hi = np.quantile(y, [0.05, 1.0])
+    pad = 0.08 * (hi - lo) if hi > lo else 1.0
+    ax.set_ylim(lo - pad, hi + pad)
+
+
+def save_landmark_figure(path: str | os.PathLike, target: np.ndarray, fitted: np.ndarray,
+                         fit_mask: np.ndarray, clicked: np.ndarray | None,
+                         projected: np.ndarray | None) -> None:
+    """Target with clicked and fitted landmarks, the fitted render, and their difference.
+
+    Parameters
+    ----------
+    target, fitted : (H, W, 3) float, display-encoded
+    fit_mask : (H, W) bool
+        Face pixels of the fitted render.
+    clicked, projected : (k, 2) pixels (x right, y down), optional
+    """
+    fig = _figure(9.6, 3.4)
+    fig.subplots_adjust(left=0.01, right=0.94, top=0.9, bottom=0.03, wspace=0.06)
+    axes = fig.subplots(1, 3)
+    axes[0].imshow(np.clip(target, 0, 1), interpolation="nearest")
+    if clicked is not None and len(clicked):
+        axes[0].plot(clicked[:, 0], clicked[:, 1], "o", ms=4, mfc="none", mec="yellow",
+                     label="target landmarks")
+    if projected is not None and len(projected):
+        axes[0].plot(projected[:, 0], projected[:, 1], "+", ms=6, color="red",
+                     label="best fit")
+    if clicked is not None or projected is not None:
+        axes[0].legend(fontsize=7, loc="lower right")
+    axes[0].set_title("target", fontsize=9)
+    over = np.where(fit_mask[..., None], fitted, target)
+    axes[1].imshow(np.clip(over, 0, 1), interpolation="nearest")
+    axes[1].set_title("best fit over the target", fontsize=9)
+    diff = np.abs(np.asarray(fitted, np.float64) - np.asarray(target, np.float64)).mean(-1)
+    im = axes[2].imshow(np.ma.masked_array(diff, ~fit_mask), cmap="magma", vmin=0.0,
+                        vmax=max(0.05, float(np.quantile(diff[fit_mask], 0.99)))
+                        if fit_mask.any() else 1.0, interpolation="nearest")
+    axes[2].set_title("|fit - target| (display values)", fontsize=9)
+    fig.colorbar(im, ax=axes[2], fraction=0.046, pad=0.02).ax.tick_params(labelsize=7)
+    for ax in axes:
+        ax.set_axis_off()
+    fig.savefig(path)

@@ -1,0 +1,174 @@
+"""Write every output of one fit into a folder (the caller makes the folder atomic).
+
+Files (see the README's "Using it" section):
+
+==============================  ==========================================================
+``posterior.npz``               ``diffuse_``/``specular_`` ``mean``, ``std``, ``lo``, ``hi``
+                                (n, 3) linear sRGB (5 % / 95 %), ``visible`` (n,) bool
+``best.rps``, ``mean.rps``      best sample (highest image likelihood) and posterior mean (V4)
+``target.png``, ``fit.png``     the input, and the best fit rendered over it
+``fit_landmarks.png``           target and fitted landmarks, fit, difference (figure)
+``albedo_<part>_<view>.png``    posterior-mean albedo, display-encoded, RGBA (view: ``fitted``
+                                or ``frontal``; part: ``diffuse`` or ``specular``)
+``uncertainty_<part>_<view>``   posterior std (mean over R, G, B) with a colour bar (figure)
+``.png``
+``traces.png``                  log densities and sampled parameters per step (figure)
+``mesh.ply``                    mean shape with posterior-mean diffuse albedo (gamma 2.2)
+``chain.h5``                    every chain (:meth:`FitResult.save_chain`)
+``config.json``                 the :class:`~mcmcfit.fit_config.FitConfig`
+``summary.json``                see :func:`mcmcfit.outputs.summary.build_summary`
+``report.html``                 everything above on one page
+==============================  ==========================================================
+
+This module imports :mod:`albedo_model` and :mod:`mcmcfit`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from albedo_model.io.image_io import write_png
+from albedo_model.io.mesh_export import write_mesh
+from albedo_model.io.rps import write_rps
+from albedo_model.render import Renderer
+from mcmcfit.fit_result import FitResult
+from mcmcfit.landmark_target import target_landmarks
+from mcmcfit.outputs.albedo_summary import posterior_albedo, write_posterior_npz
+from mcmcfit.outputs.figures import save_landmark_figure, save_scalar_map, save_traces
+from mcmcfit.outputs.summary import build_summary, landmark_errors
+from mcmcfit.outputs.truth import Truth, albedo_error
+from mcmcfit.outputs.vertex_maps import encode_display, frontal_params, vertex_image
+from mcmcfit.posterior import visible_vertices
+
+__all__ = ["OUTPUT_FILES", "write_fit_outputs"]
+
+#: Files every result folder holds (specular pictures only for models with specular albedo).
+OUTPUT_FILES = (
+    "posterior.npz", "best.rps", "mean.rps", "target.png", "fit.png", "fit_landmarks.png",
+    "albedo_diffuse_fitted.png", "albedo_diffuse_frontal.png",
+    "uncertainty_diffuse_fitted.png", "uncertainty_diffuse_frontal.png",
+    "traces.png", "mesh.ply", "chain.h5", "config.json", "summary.json", "report.html",
+)
+
+_STD_LABEL = "posterior std of {part} albedo\n(linear sRGB, mean over R, G, B)"
+
+
+def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, image: np.ndarray, *,
+                      landmarks=None, face_box=None, inputs: dict | None = None,
+                      truth: Truth | None = None) -> dict:
+    """Write the outputs of ``result`` into ``folder`` and return the summary dict.
+
+    Parameters
+    ----------
+    folder : path-like
+        An existing (empty, temporary) folder.
+    result : FitResult
+    loaded : mcmcfit.fit_job.LoadedModel
+        The fitted model with its file SHA-256 and URI.
+    image : (H, W, 3) float in [0, 1]
+        The target as fitted (gamma-encoded).
+    landmarks : list of Landmark or mapping, optional
+        The target landmarks (for the landmark error and figure).
+    face_box : (x0, y0, x1, y1), optional
+    inputs : dict, optional
+        Recorded as ``summary["inputs"]``.
+    truth : Truth, optional
+        Ground truth of a synthetic case: the albedo error goes into the summary.
+
+    Returns
+    -------
+    dict
+        The content written to ``summary.json``.
+    """
+    t0 = time.perf_counter()
+    out = Path(folder)
+    model = loaded.model
+    cfg = result.config
+    best = result.best.params
+    mean = result.mean_params if result.mean_params is not None else best
+    # the fit's renderer settings (linear output), so that its compiled stages are reused
+    renderer = Renderer(model, specular=cfg.specular, threads=cfg.threads)
+    state = renderer.init_state(best)
+    rendered = renderer.image(state)
+    fitted = rendered._replace(image=encode_display(rendered.image).astype(np.float32))
+    visible = visible_vertices(renderer, state)
+    post = posterior_albedo(result, model, visible)
+    write_posterior_npz(out / "posterior.npz", post)
+    write_rps(out / "best.rps", best)
+    write_rps(out / "mean.rps", mean)
+
+    target = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
+    write_png(out / "target.png", target)
+    write_png(out / "fit.png", np.where(fitted.mask[..., None], fitted.image, target))
+
+    clicked = target_landmarks(landmarks) if landmarks is not None else {}
+    lm_err = None
+    projected = None
+    if result.landmarks_used:
+        names, px, _ = renderer.landmarks(state, list(result.landmarks_used))
+        lm_err = landmark_errors(clicked, names, px)
+        projected = np.asarray(px)
+    save_landmark_figure(out / "fit_landmarks.png", target, fitted.image, fitted.mask,
+                         np.array([clicked[n] for n in result.landmarks_used])
+                         if result.landmarks_used else None, projected)
+
+    front = renderer.init_state(frontal_params(mean._replace(
+        environment_map=best.environment_map, color_transform=best.color_transform,
+        specular_exponent=best.specular_exponent), model))
+    parts = [("diffuse", post.diffuse)] + ([("specular", post.specular)]
+                                           if post.specular is not None else [])
+    for name, part in parts:
+        std = part.std.mean(axis=1)
+        vmax = float(np.quantile(std, 0.995)) if std.size else 1.0
+        for view, st in (("fitted", state), ("frontal", front)):
+            rgb, mask = vertex_image(st, part.mean)
+            write_png(out / f"albedo_{name}_{view}.png", encode_display(rgb), alpha=mask)
+            s_img, s_mask = vertex_image(st, std)
+            save_scalar_map(out / f"uncertainty_{name}_{view}.png",
+                            [(f"{name} albedo std, {view} view", s_img, s_mask)],
+                            vmax=vmax, label=_STD_LABEL.format(part=name))
+    save_traces(out / "traces.png", result)
+
+    m = mean.momo
+    verts = model.shape_instance(np.asarray(m.shape), np.asarray(m.expression)
+                                 if model.expression is not None else None)
+    write_mesh(out / "mesh.ply", verts, model.triangles, post.diffuse.mean.astype(np.float64),
+               gamma=2.2)
+    result.save_chain(out / "chain.h5")
+    (out / "config.json").write_text(cfg.to_json() + "\n", encoding="utf-8")
+
+    truth_error = None
+    if truth is not None:
+        truth_error = albedo_error(post, truth)
+        if truth.params is not None:
+            truth_error["pose_error_deg"] = _pose_error_deg(best, truth.params)
+    albedo = {"colour_space": "linear sRGB", "display_encoding": "pure power 1/2.2",
+              "interval": post.diffuse.level, "n_samples": post.n_samples,
+              "n_vertices": int(visible.size), "n_visible": int(visible.sum()),
+              "diffuse_std_visible_mean": float(post.diffuse.std[visible].mean())
+              if visible.any() else None,
+              "specular": post.specular is not None}
+    files = [p.name for p in out.iterdir()] + ["summary.json", "report.html"]
+    summary = build_summary(result, model_sha256=loaded.sha256, model_uri=loaded.uri,
+                            inputs={**(inputs or {}), "face_box": None if face_box is None
+                                    else list(face_box)},
+                            landmark_err=lm_err, albedo=albedo, files=files,
+                            truth_error=truth_error,
+                            extra_timings={"outputs_s": time.perf_counter() - t0})
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n",
+                                      encoding="utf-8")
+    from mcmcfit.report_html import write_report
+
+    write_report(out / "report.html", summary)
+    return summary
+
+
+def _pose_error_deg(fit, true) -> dict:
+    """Absolute yaw / pitch / roll differences in degrees."""
+    return {k: float(np.degrees(abs(getattr(fit.pose, k) - getattr(true.pose, k))))
+            for k in ("yaw", "pitch", "roll")}

@@ -1,0 +1,162 @@
+"""``report.html``: one self-describing page per fit, over the PNGs beside it.
+
+The page shows the target and the fit, the landmarks, the posterior albedo and
+uncertainty maps in the fitted and the frontal view, the traces, the acceptance
+table per proposal, the convergence diagnostics, the timings and provenance,
+and (for synthetic cases) the error against the truth. Pictures are referenced
+by relative path, so the folder can be moved as a whole.
+
+This module imports only the standard library.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import os
+from pathlib import Path
+
+__all__ = ["render_report", "write_report"]
+
+_CSS = """
+body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; max-width: 1100px; }
+h1 { font-size: 1.4em; } h2 { font-size: 1.15em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
+table { border-collapse: collapse; font-size: 0.85em; margin: 0.5em 0; }
+td, th { border: 1px solid #ccc; padding: 2px 8px; text-align: right; }
+th { background: #f2f2f2; } td.l, th.l { text-align: left; }
+figure { display: inline-block; margin: 0.3em; vertical-align: top; text-align: center; }
+figure img { max-width: 100%; image-rendering: pixelated; border: 1px solid #ddd; }
+figcaption { font-size: 0.8em; color: #555; }
+.small img { width: 256px; }
+"""
+
+
+def _fmt(v, digits: int = 4) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return f"{v:,}"
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            return "–"
+        return f"{v:.{digits}g}"
+    return html.escape(str(v))
+
+
+def _table(header: list[str], rows: list[list], left: int = 1) -> str:
+    th = "".join(f"<th class='l'>{html.escape(h)}</th>" if i < left else f"<th>{html.escape(h)}</th>"
+                 for i, h in enumerate(header))
+    body = "".join("<tr>" + "".join(
+        f"<td class='l'>{_fmt(c)}</td>" if i < left else f"<td>{_fmt(c)}</td>"
+        for i, c in enumerate(r)) + "</tr>" for r in rows)
+    return f"<table><tr>{th}</tr>{body}</table>"
+
+
+def _figure(src: str, caption: str, cls: str = "") -> str:
+    return (f"<figure class='{cls}'><img src='{html.escape(src)}' alt='{html.escape(caption)}'>"
+            f"<figcaption>{html.escape(caption)}</figcaption></figure>")
+
+
+def _acceptance(stats: dict) -> str:
+    rows = [[name, s.get("proposed"), s.get("accepted"), s.get("rate"),
+             s.get("rejected_landmarks"), s.get("rejected_prior"), s.get("rejected_image")]
+            for name, s in stats.items()]
+    total = sum(s.get("proposed", 0) for s in stats.values())
+    acc = sum(s.get("accepted", 0) for s in stats.values())
+    rows.append(["all", total, acc, acc / total if total else None,
+                 sum(s.get("rejected_landmarks", 0) for s in stats.values()),
+                 sum(s.get("rejected_prior", 0) for s in stats.values()),
+                 sum(s.get("rejected_image", 0) for s in stats.values())])
+    return _table(["proposal", "proposed", "accepted", "rate", "rejected by landmarks",
+                   "by prior", "by image"], rows)
+
+
+def render_report(summary: dict, files: set[str] | None = None) -> str:
+    """The report page for ``summary`` (a ``summary.json`` dict) as HTML text.
+
+    Parameters
+    ----------
+    summary : dict
+    files : set of str, optional
+        Names present in the folder; pictures not in it are left out (all are
+        assumed present when None).
+    """
+    have = (lambda name: True) if files is None else (lambda name: name in files)
+    t = summary.get("timings", {})
+    steps = summary.get("steps", {})
+    parts = ["<!doctype html><html><head><meta charset='utf-8'>",
+             "<title>mcmcfit fit report</title>", f"<style>{_CSS}</style></head><body>",
+             "<h1>mcmcfit fit report</h1>"]
+    inputs = summary.get("inputs", {})
+    overview = [
+        ["image", inputs.get("image", "(array)")],
+        ["landmarks", inputs.get("landmarks") or ("face box" if inputs.get("face_box") else "–")],
+        ["model", summary.get("model_uri") or "–"],
+        ["model sha256", summary.get("model_sha256") or "–"],
+        ["seed", summary.get("seed")],
+        ["mcmcfit version", summary.get("version")],
+        ["schedule", f"{steps.get('chains')} chain(s) x ({steps.get('landmark')} landmark + "
+                     f"{steps.get('image')} image steps), thin {steps.get('thin')}"],
+        ["time (fit, s)", t.get("total_s")],
+        ["time landmark / image stage (s, summed over chains)",
+         f"{_fmt(t.get('stage1_s'))} / {_fmt(t.get('stage2_s'))}"],
+        ["image steps per second", t.get("stage2_steps_per_s")],
+        ["landmark RMSE of the best sample (px)", summary.get("landmark_rmse_px")],
+        ["landmarks used / unknown", f"{len(summary.get('landmarks', {}).get('used', []))} / "
+                                     f"{', '.join(summary.get('landmarks', {}).get('unknown', [])) or '–'}"],
+    ]
+    parts += ["<h2>Overview</h2>", _table(["", ""], overview, left=2)]
+    truth = summary.get("truth")
+    if truth:
+        rows = [[part, truth[part]["rmse"], truth[part]["mean_abs"], truth[part]["coverage"]]
+                for part in ("diffuse", "specular") if part in truth]
+        parts += ["<h2>Error against the truth (synthetic case)</h2>",
+                  f"<p>Posterior-mean albedo against the true albedo on the "
+                  f"{_fmt(truth.get('n_visible'))} vertices visible in the true view "
+                  f"(linear sRGB); coverage: fraction of true values inside the "
+                  f"{_fmt(100 * truth.get('interval', 0.9), 3)} % intervals.</p>",
+                  _table(["albedo", "RMSE", "mean |error|", "coverage"], rows)]
+        if "pose_error_deg" in truth:
+            pe = truth["pose_error_deg"]
+            parts.append(_table(["pose error (deg)", "yaw", "pitch", "roll"],
+                                [["best sample", pe.get("yaw"), pe.get("pitch"), pe.get("roll")]]))
+    parts.append("<h2>Target and fit</h2>")
+    for name, cap in (("target.png", "target"), ("fit.png", "best fit rendered over the target")):
+        if have(name):
+            parts.append(_figure(name, cap, "small"))
+    if have("fit_landmarks.png"):
+        parts.append("<br>" + _figure("fit_landmarks.png", "landmarks, fit and difference"))
+    for kind, title in (("albedo", "Posterior-mean albedo (display-encoded)"),
+                        ("uncertainty", "Uncertainty: posterior standard deviation")):
+        parts.append(f"<h2>{title}</h2>")
+        for part in ("diffuse", "specular"):
+            for view in ("fitted", "frontal"):
+                name = f"{kind}_{part}_{view}.png"
+                if have(name):
+                    parts.append(_figure(name, f"{part}, {view} view",
+                                         "small" if kind == "albedo" else ""))
+            parts.append("<br>")
+    if have("traces.png"):
+        parts += ["<h2>Traces</h2>", _figure("traces.png", "per-step log densities and samples")]
+    parts += ["<h2>Acceptance per proposal (image stage, all chains)</h2>",
+              _acceptance(summary.get("acceptance", {}))]
+    if summary.get("acceptance_stage1"):
+        parts += ["<h2>Acceptance per proposal (landmark stage)</h2>",
+                  _acceptance(summary["acceptance_stage1"])]
+    ess, rhat = summary.get("ess", {}), summary.get("rhat", {})
+    parts += ["<h2>Convergence (last stage, after burn-in)</h2>",
+              _table(["series", "ESS (all chains)", "split R-hat"],
+                     [[k, ess.get(k), rhat.get(k)] for k in ess])]
+    parts += ["<h2>Files</h2><p>" + ", ".join(
+        f"<a href='{html.escape(f)}'>{html.escape(f)}</a>" for f in summary.get("files", []))
+        + "</p>", "</body></html>"]
+    return "\n".join(parts)
+
+
+def write_report(path: str | os.PathLike, summary: dict) -> None:
+    """Write ``report.html`` for ``summary`` beside the pictures it shows."""
+    p = Path(path)
+    files = {f.name for f in p.parent.iterdir()}
+    p.write_text(render_report(summary, files), encoding="utf-8")
