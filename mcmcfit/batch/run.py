@@ -1,0 +1,236 @@
+"""Plan and run a batch: which images to fit, the engine, the journals, the progress bar.
+
+:func:`plan_batch` finds the images (:mod:`mcmcfit.batch.discovery`), keeps
+those whose result folder is not complete (or all of them with ``force``),
+removes temporary folders left by a killed run, and builds one
+:class:`~mcmcfit.batch.task.FitTask` per image. :func:`run_batch` runs them on
+the process pool or on Dask and, in this process only, appends one line per
+finished image to ``OUT/batch.jsonl`` and one per failed or skipped image to
+``OUT/failures.jsonl`` (:mod:`mcmcfit.batch.journal`).
+
+A complete folder that has no ``batch.jsonl`` line (the batch was killed
+between the rename and the journal write) gets its line on the next run,
+marked ``"recovered": true``, so the journal ends with one line per result.
+
+This module imports :mod:`mcmcfit` and the standard library.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mcmcfit.batch.discovery import BatchItem, Skipped, discover
+from mcmcfit.batch.journal import BATCH_JOURNAL, FAILURES_JOURNAL, append_line, read_journal
+from mcmcfit.batch.out_paths import is_complete, remove_stale_temp_dirs, result_dir
+from mcmcfit.batch.records import record_from_folder
+from mcmcfit.batch.seeds import image_seed
+from mcmcfit.batch.task import FitTask, run_task
+from mcmcfit.fit_config import FitConfig
+
+__all__ = ["BatchOptions", "BatchPlan", "BatchResult", "plan_batch", "run_batch"]
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """What ``mcmcfit batch`` was asked to do.
+
+    Attributes
+    ----------
+    input : Path
+        Folder of images, or a text file listing them.
+    out : Path
+        Output folder.
+    model : str
+        Model file or ``"default"``.
+    config : FitConfig
+        Settings of every fit (the ray-casting threads are set from ``threads``).
+    seed : int
+        Root seed; image seeds come from :func:`mcmcfit.batch.seeds.image_seed`.
+    landmarks_dir, landmarks_glob : optional
+        Where the landmarks are (:mod:`mcmcfit.batch.discovery`).
+    face_box : str or None
+        For images without landmarks: ``"lfw"`` or ``"x,y,w,h"``; None skips them.
+    force : bool
+        Refit images whose result folder is complete.
+    workers : int
+        Processes (pool or LocalCluster).
+    threads : int
+        Threads per worker.
+    scheduler : str or None
+        Dask scheduler address.
+    dask : bool
+        Use a Dask LocalCluster instead of the process pool.
+    pin : bool
+        Pin pool workers to cores.
+    progress : bool
+        Show the progress bar.
+    """
+
+    input: Path
+    out: Path
+    model: str = "default"
+    config: FitConfig = field(default_factory=FitConfig)
+    seed: int = 0
+    landmarks_dir: Path | None = None
+    landmarks_glob: str | None = None
+    face_box: str | None = None
+    force: bool = False
+    workers: int = 1
+    threads: int = 1
+    scheduler: str | None = None
+    dask: bool = False
+    pin: bool = False
+    progress: bool = True
+
+
+@dataclass
+class BatchPlan:
+    """The tasks to run, the images already complete and those skipped."""
+
+    tasks: list[FitTask]
+    complete: list[BatchItem]
+    skipped: list[Skipped]
+
+
+@dataclass
+class BatchResult:
+    """Counts of one run of a batch (``failed`` lists the outcomes of failed images)."""
+
+    total: int
+    already_complete: int
+    fitted: int
+    failed: list[dict]
+    skipped: int
+
+    @property
+    def exit_code(self) -> int:
+        """0 when no image failed in this run, else 1."""
+        return 1 if self.failed else 0
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+def _model_spec(spec: str) -> str:
+    if str(spec) == "default":
+        return "default"
+    return os.path.abspath(spec)
+
+
+def plan_batch(opts: BatchOptions) -> BatchPlan:
+    """Images to fit now, images already complete, images skipped (see the module docstring)."""
+    out = Path(opts.out)
+    items, skipped = discover(opts.input, exclude=[out], landmarks_dir=opts.landmarks_dir,
+                              landmarks_glob=opts.landmarks_glob,
+                              allow_face_box=opts.face_box is not None)
+    config = opts.config.replace(threads=min(2, max(1, opts.threads)))
+    tasks, complete = [], []
+    model = _model_spec(opts.model)
+    for item in items:
+        folder = result_dir(out, item.relative)
+        if is_complete(folder) and not opts.force:
+            complete.append(item)
+            continue
+        tasks.append(FitTask(
+            image=str(item.image), source=item.source, relative=str(item.relative),
+            out_dir=str(folder.absolute()),
+            landmarks=None if item.landmarks is None else str(item.landmarks.absolute()),
+            face_box=None if item.landmarks is not None else opts.face_box,
+            model=model, config=config.to_dict(), seed=image_seed(opts.seed, item.relative),
+            force=opts.force or folder.exists(), threads=max(1, opts.threads)))
+    return BatchPlan(tasks, complete, skipped)
+
+
+def _journal_missing(out: Path, complete: list[BatchItem], run_id: str) -> None:
+    known = {r.get("relative") for r in read_journal(out / BATCH_JOURNAL)
+             if r.get("status") == "ok"}
+    for item in complete:
+        if str(item.relative) in known:
+            continue
+        folder = result_dir(out, item.relative)
+        try:
+            record = record_from_folder(folder)
+        except (OSError, ValueError, KeyError) as exc:
+            record = {"note": f"summary unreadable: {exc}"}
+        append_line(out / BATCH_JOURNAL, {"path": item.source, "relative": str(item.relative),
+                                          "status": "ok", "recovered": True, "run": run_id,
+                                          "finished_at": _now(), **record})
+
+
+def _journal_skipped(out: Path, skipped: list[Skipped], run_id: str) -> None:
+    last = {r.get("path"): r for r in read_journal(out / FAILURES_JOURNAL)}
+    for s in skipped:
+        prev = last.get(s.source)
+        if prev is not None and prev.get("status") == "skipped" and prev.get("reason") == s.reason:
+            continue
+        append_line(out / FAILURES_JOURNAL, {"path": s.source, "relative": s.relative,
+                                             "status": "skipped", "reason": s.reason,
+                                             "run": run_id, "finished_at": _now()})
+
+
+def _outcomes(opts: BatchOptions, tasks: list[FitTask], fn):
+    if opts.scheduler or opts.dask:
+        from mcmcfit.batch.dask_runner import dask_outcomes
+
+        return dask_outcomes(tasks, scheduler=opts.scheduler, workers=opts.workers,
+                             threads=opts.threads, fn=fn)
+    from mcmcfit.batch.pool_runner import pool_outcomes
+
+    return pool_outcomes(tasks, workers=opts.workers, threads=opts.threads, pin=opts.pin, fn=fn)
+
+
+def run_batch(opts: BatchOptions, *, log=None, task_fn=run_task) -> BatchResult:
+    """Fit every image of the batch that is not complete yet; journal every outcome.
+
+    Parameters
+    ----------
+    opts : BatchOptions
+    log : callable ``(str) -> None``, optional
+        Receives a few lines about the plan (default: stderr).
+    task_fn : callable ``(FitTask) -> dict``
+        The task function (module-level); :func:`mcmcfit.batch.task.run_task`.
+
+    Returns
+    -------
+    BatchResult
+    """
+    from tqdm import tqdm
+
+    log = log or (lambda text: print(text, file=sys.stderr))
+    out = Path(opts.out)
+    out.mkdir(parents=True, exist_ok=True)
+    run_id = f"{datetime.datetime.now():%Y%m%dT%H%M%S}-{os.getpid()}"
+    plan = plan_batch(opts)
+    _journal_missing(out, plan.complete, run_id)
+    _journal_skipped(out, plan.skipped, run_id)
+    for task in plan.tasks:
+        remove_stale_temp_dirs(task.out_dir)
+    total = len(plan.tasks) + len(plan.complete)
+    log(f"mcmcfit batch: {total} images, {len(plan.complete)} already complete, "
+        f"{len(plan.tasks)} to fit, {len(plan.skipped)} skipped"
+        + (" (see failures.jsonl)" if plan.skipped else ""))
+    failed: list[dict] = []
+    fitted = 0
+    bar = tqdm(total=len(plan.tasks), unit="img", desc="fitting", file=sys.stderr,
+               disable=not opts.progress or not plan.tasks, dynamic_ncols=True)
+    try:
+        bar.set_postfix_str(f"done=0 failed=0 remaining={len(plan.tasks)}")
+        for outcome in _outcomes(opts, plan.tasks, task_fn):
+            record = {**outcome, "run": run_id, "finished_at": _now()}
+            if outcome.get("status") == "ok":
+                fitted += 1
+                append_line(out / BATCH_JOURNAL, record)
+            else:
+                failed.append(record)
+                append_line(out / FAILURES_JOURNAL, record)
+            bar.update(1)
+            remaining = len(plan.tasks) - fitted - len(failed)
+            bar.set_postfix_str(f"done={fitted} failed={len(failed)} remaining={remaining}")
+    finally:
+        bar.close()
+    return BatchResult(total, len(plan.complete), fitted, failed, len(plan.skipped))
