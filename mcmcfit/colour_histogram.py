@@ -52,6 +52,56 @@ class ColourHistogram(NamedTuple):
             out = np.log(self.counts[r, g, b] / self.total) + 3.0 * math.log(self.bins)
         return out.reshape(shape)
 
+    def smoothed_log_density(self, colours: np.ndarray, sigma: float, *,
+                             block: int = 4096) -> np.ndarray:
+        """Log density of the histogram convolved with isotropic Gaussian noise ``N(0, sigma^2 I)``.
+
+        Each bin is a uniform box of probability ``count / total``; convolved with
+        the noise it becomes a product over channels of
+        ``(Phi((hi - c) / sigma) - Phi((lo - c) / sigma)) / width``. The result is a
+        proper density of the same variable as the foreground pixel model (a true
+        colour observed through the same noise), and it never exceeds the
+        Gaussian's peak ``(2 pi)^(-3/2) sigma^-3``: it is a mixture of densities
+        each bounded by that peak. So a face pixel the model renders exactly
+        always scores above the background, whatever the histogram's bin size,
+        whereas the raw histogram can exceed the Gaussian's peak in the bins
+        where the face's own colours pile up (one bin holding 5 % of the pixels
+        at 25 bins is ``0.05 x 25^3 = 781`` against the peak ``797`` at sigma = 0.043).
+
+        Parameters
+        ----------
+        colours : (..., 3) float array
+        sigma : float > 0
+            Per-channel noise, the pixel model's sigma.
+        block : int
+            Colours evaluated per block (bounds memory to ``block x bins^2`` floats).
+
+        Returns
+        -------
+        (...,) float64, finite for every colour.
+        """
+        from scipy.special import ndtr
+
+        c = np.asarray(colours, np.float64)
+        shape = c.shape[:-1]
+        c = c.reshape(-1, 3)
+        b = self.bins
+        edges = np.linspace(0.0, 1.0, b + 1)
+        p = (self.counts / self.total).reshape(b, b * b)
+        # only distinct colours need evaluating (8-bit images repeat many)
+        uniq, inverse = np.unique(c, axis=0, return_inverse=True)
+        dens = np.empty(uniq.shape[0])
+        for start in range(0, uniq.shape[0], block):
+            u = uniq[start:start + block]
+            k = [(ndtr((edges[None, 1:] - u[:, ch:ch + 1]) / sigma)
+                  - ndtr((edges[None, :-1] - u[:, ch:ch + 1]) / sigma)) * b for ch in range(3)]
+            t = (k[0] @ p).reshape(-1, b, b)  # sum over red bins: (n, green, blue)
+            t = np.einsum("njk,nj->nk", t, k[1])
+            dens[start:start + block] = np.einsum("nk,nk->n", t, k[2])
+        with np.errstate(divide="ignore"):
+            out = np.log(np.maximum(dens, 1e-300))
+        return out[inverse.reshape(-1)].reshape(shape)
+
 
 def colour_histogram(colours: np.ndarray, *, bins: int = 25,
                      weights: np.ndarray | None = None) -> ColourHistogram:

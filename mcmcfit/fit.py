@@ -2,9 +2,11 @@
 
 :func:`fit` wires the pieces: targets (:mod:`mcmcfit.image_target`,
 :mod:`mcmcfit.landmark_target`), prior, renderer, the default proposal
-schedules (:mod:`proposals.schedule`), the filtered MH sampler and its
-recorder, and the diagnostics. Chains run one after the other in this
-process and share one renderer.
+schedules (:mod:`proposals.schedule`, with the SH light solver's and the
+albedo conditional's data read from the accepted render), the filtered MH
+sampler and its recorder, and the diagnostics. Chains run one after the
+other in this process and share one renderer (whose compiled shading is
+cached per effect set across fits).
 
 This module imports :mod:`albedo_model`, :mod:`proposals` and :mod:`mcmcfit`.
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -21,6 +24,7 @@ from albedo_model.errors import InputError
 from albedo_model.model import MorphableModel
 from albedo_model.params import ImageSize, RenderParameter, SHLight
 from albedo_model.render import Renderer
+from mcmcfit.albedo_data import RenderAlbedoData
 from mcmcfit.chain import BestSample, ChainRecord, ChainRecorder, ChainResult
 from mcmcfit.diagnostics import chain_diagnostics
 from mcmcfit.face_target import FaceTarget
@@ -44,6 +48,8 @@ __all__ = ["Progress", "fit", "run_stage"]
 Progress = Callable[[str, int, int, int], None]
 
 _PROGRESS_EVERY = 25
+#: Images whose brightest value is below half an 8-bit step are "all black".
+_BLACK = 0.5 / 255.0
 
 
 def run_stage(rng: np.random.Generator, start: RenderParameter, target: FaceTarget, proposal,
@@ -109,13 +115,18 @@ def fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConfi
     Raises
     ------
     InputError
-        Bad image, no usable landmark, bad configuration.
+        Bad or all-black image, fewer than 3 target landmarks the model knows
+        (those it lacks are named in a warning and ignored), bad configuration.
     """
     cfg = config or FitConfig()
     t_start = time.perf_counter()
     img = np.asarray(image, np.float64)
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(f"image must have shape (H, W, 3), got {img.shape}")
+    if not np.all(np.isfinite(img)):
+        raise InputError("image contains NaN or infinite values")
+    if img.size == 0 or float(img.max()) < _BLACK:
+        raise InputError("image is entirely black: there is no face to fit")
     h, w = img.shape[:2]
     geometry = LandmarkGeometry(model, threads=1)
     factor: LandmarkTarget | FaceBoxTarget | None = None
@@ -127,6 +138,9 @@ def fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConfi
         factor = LandmarkTarget(geometry, landmarks, sigma=cfg.sigma_lm, image_size=ImageSize(w, h),
                                 hidden_probability=cfg.lm_hidden_probability)
         used, unknown = tuple(factor.names), tuple(factor.unknown)
+        if unknown:
+            warnings.warn(f"ignoring {len(unknown)} landmark(s) the model does not have: "
+                          f"{', '.join(unknown)}", stacklevel=2)
         if len(factor.names) >= 2:
             params0 = pose_from_landmarks(geometry, factor.names, factor.observed, params0,
                                           refine=cfg.init_pose == "lsq")
@@ -137,9 +151,10 @@ def fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConfi
     layout = ParamLayout.for_params(params0)
     prior = LogPrior(cfg.prior)
     renderer = Renderer(model, specular=cfg.specular, threads=cfg.threads)
-    image_target = prepare_image_target(img, bins=cfg.bins)
+    smooth = cfg.sigma_px if cfg.background == "smoothed" else None
+    image_target = prepare_image_target(img, bins=cfg.bins, smooth_sigma=smooth)
     image_lik = ImageLikelihood(image_target, kind=cfg.likelihood, sigma=cfg.sigma_px,
-                                trim_fraction=cfg.trim_fraction)
+                                trim_fraction=cfg.trim_fraction, temperature=cfg.temperature)
     face = FaceTarget(renderer, image_lik, factor, prior)
     lm_only = FaceTarget(renderer, None, factor, prior)
     centring = geometry.point if all(n in geometry.names for n in CENTERING_LANDMARKS) else None
@@ -155,9 +170,15 @@ def fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConfi
         rng = np.random.default_rng(ss)
         light_data = RenderLightData(face, renderer, image_target.linear,
                                      n_points=cfg.solver_points, seed=int(ss.generate_state(1)[0]))
+        albedo_data = RenderAlbedoData(face, renderer, image_target.linear,
+                                       n_points=cfg.albedo_points,
+                                       seed=int(ss.generate_state(2)[1]))
         image_proposal = default_image_proposal(
             centring, solver_data=light_data, specular_weight=specular_weight,
-            block_size=cfg.block_size, solver_sigma=cfg.solver_sigma)
+            block_size=cfg.block_size, solver_sigma=cfg.solver_sigma,
+            albedo_data=albedo_data if cfg.albedo_weight > 0 else None,
+            albedo_weight=cfg.albedo_weight,
+            pixel_sigma=cfg.sigma_px * math.sqrt(cfg.temperature))
 
         def report(stage: str, ci: int = ci):
             if progress is None:
@@ -224,4 +245,13 @@ def _assemble(cfg: FitConfig, seed: int, layout: ParamLayout, template: RenderPa
                    "stage2": chain_diagnostics(rec2, burn_fraction=cfg.burn_fraction)}
     return FitResult(cfg, int(seed), layout, template, chains, best, best_post, lm_init,
                      mean_params, sum_acceptance(rec2), sum_acceptance(rec1), timings,
-                     diagnostics, tuple(used), tuple(unknown))
+                     diagnostics, tuple(used), tuple(unknown),
+                     {"stage1": _sum_seconds(rec1), "stage2": _sum_seconds(rec2)})
+
+
+def _sum_seconds(records: list[ChainRecord]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for r in records:
+        for name, t in r.time_by_proposal().items():
+            out[name] = out.get(name, 0.0) + t
+    return dict(sorted(out.items()))

@@ -6,6 +6,7 @@ diagnostics, parameter vectors).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass
 
@@ -78,6 +79,9 @@ class FitResult:
         image log likelihood, a few parameter columns).
     landmarks_used, landmarks_unknown : tuple of str
         Target landmarks that took part, and those the model does not have.
+    proposal_seconds : dict
+        ``{"stage1": {name: s}, "stage2": {name: s}}``: wall time of the steps
+        of each proposal, summed over chains (MH stages only).
     """
 
     config: FitConfig
@@ -95,6 +99,7 @@ class FitResult:
     diagnostics: dict[str, dict[str, SeriesDiagnostics]]
     landmarks_used: tuple[str, ...] = ()
     landmarks_unknown: tuple[str, ...] = ()
+    proposal_seconds: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
 
     def records(self, stage: int = 2) -> list[ChainRecord]:
         """The ChainRecords of one stage (1 or 2), one per chain that ran it."""
@@ -154,6 +159,7 @@ class FitResult:
             "timings": dict(self.timings),
             "diagnostics": {stage: {k: v._asdict() for k, v in d.items()}
                             for stage, d in self.diagnostics.items()},
+            "proposal_seconds": {k: dict(v) for k, v in self.proposal_seconds.items()},
             "landmarks_used": list(self.landmarks_used),
             "landmarks_unknown": list(self.landmarks_unknown),
         }

@@ -8,6 +8,18 @@ histogram (built from the linearised target pixels, so that foreground and
 background are densities of the same variable) and for the SH light solver.
 The pixel sigma (0.043 by default) is therefore in linear units.
 
+Background: the reference scores each face pixel against the raw colour
+histogram of the target, ``log(count / total) + 3 log B``. Where the face's own
+colours pile up (the face is a large part of the image and its colours are
+concentrated), that density exceeds the Gaussian foreground's peak
+``(2 pi)^(-3/2) sigma^-3`` (797 at sigma = 0.043, reached by one bin holding 5 %
+of the pixels), so even a perfectly rendered face pixel scores below
+background and the posterior prefers faces that are too small. With
+``smooth_sigma`` the histogram is convolved with the pixel noise: a density of
+the same noisy colour as the foreground, which never exceeds its peak
+(:meth:`~mcmcfit.colour_histogram.ColourHistogram.smoothed_log_density`); fits
+use it by default (:attr:`mcmcfit.fit_config.FitConfig.background`).
+
 This module imports :mod:`albedo_model` and :mod:`mcmcfit.likelihoods`,
 :mod:`mcmcfit.colour_histogram`.
 """
@@ -91,7 +103,8 @@ class ImageTarget:
         return int(self.linear.shape[1])
 
 
-def prepare_image_target(image: np.ndarray, *, bins: int = 25) -> ImageTarget:
+def prepare_image_target(image: np.ndarray, *, bins: int = 25,
+                         smooth_sigma: float | None = None) -> ImageTarget:
     """Linearise a photograph and build its background histogram.
 
     Parameters
@@ -100,6 +113,10 @@ def prepare_image_target(image: np.ndarray, *, bins: int = 25) -> ImageTarget:
         (e.g. :func:`albedo_model.io.image_io.read_image`).
     bins : int
         Histogram bins per channel (25 in the reference).
+    smooth_sigma : float, optional
+        Convolve the histogram with the pixel noise ``N(0, smooth_sigma^2)``
+        (:meth:`ColourHistogram.smoothed_log_density`; pass the pixel model's
+        sigma). None keeps the raw piecewise-constant histogram (the reference).
 
     Raises
     ------
@@ -113,7 +130,8 @@ def prepare_image_target(image: np.ndarray, *, bins: int = 25) -> ImageTarget:
         raise InputError("target image contains NaN or infinite values")
     lin = linearise(img)
     hist = colour_histogram(lin, bins=bins)
-    bg = hist.log_density(lin)
+    bg = hist.log_density(lin) if smooth_sigma is None else \
+        hist.smoothed_log_density(lin, float(smooth_sigma))
     arrays = ImageArrays(
         rgb=tuple(jnp.asarray(lin[..., c], jnp.float32) for c in range(3)),
         bg=jnp.asarray(bg, jnp.float32),
@@ -147,6 +165,10 @@ class ImageLikelihood:
     trim_fraction : float in (0, 1]
     relative_variance : float
         Of the collective likelihood (2/3: Gaussian per-channel noise).
+    temperature : float
+        The log likelihood is divided by it (1: the plain likelihood). Pixels
+        are not independent (model errors are smooth over the face), so the
+        plain product is overconfident; T > 1 counts about N / T effective pixels.
     """
 
     target: ImageTarget
@@ -154,7 +176,9 @@ class ImageLikelihood:
     sigma: float = 0.043
     trim_fraction: float = 0.9
     relative_variance: float = 2.0 / 3.0
+    temperature: float = 1.0
     _fn: object = field(init=False, repr=False)
+    _args: tuple = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.kind not in IMAGE_LIKELIHOODS:
@@ -164,7 +188,13 @@ class ImageLikelihood:
             raise InputError(f"pixel sigma must be > 0, got {self.sigma!r}")
         if not 0.0 < self.trim_fraction <= 1.0:
             raise InputError(f"trim fraction must be in (0, 1], got {self.trim_fraction!r}")
+        if not (math.isfinite(self.temperature) and self.temperature >= 1.0):
+            raise InputError(f"likelihood temperature must be >= 1, got {self.temperature!r}")
         object.__setattr__(self, "_fn", _jitted(self.kind))
+        # one device scalar for every call (a fresh jnp.float32 per step is a host->device copy)
+        args = (self.target.arrays,) if self.kind == "collective" else (
+            self.target.arrays, jnp.float32(self.sigma))
+        object.__setattr__(self, "_args", args)
 
     @property
     def device_fn(self):
@@ -178,9 +208,7 @@ class ImageLikelihood:
 
     def device_args(self) -> tuple:
         """The arguments after ``(rgb, mask)`` of :attr:`device_fn`."""
-        if self.kind == "collective":
-            return (self.target.arrays,)
-        return (self.target.arrays, jnp.float32(self.sigma))
+        return self._args
 
     def terms(self, rgb, mask):
         """Device partial results for the shader output (see :mod:`mcmcfit.likelihoods`)."""
@@ -190,11 +218,13 @@ class ImageLikelihood:
         """Host float64 value from the device results (partial sums, or values and mask)."""
         rows, counts = np.asarray(rows), np.asarray(counts)
         if self.kind == "independent":
-            return finish_independent(rows, counts, self.sigma)
-        if self.kind == "collective":
-            return finish_collective(rows, counts, math.sqrt(3.0) * self.sigma,
-                                     self.relative_variance)
-        return finish_trimmed(rows, counts, self.sigma, self.trim_fraction)
+            value = finish_independent(rows, counts, self.sigma)
+        elif self.kind == "collective":
+            value = finish_collective(rows, counts, math.sqrt(3.0) * self.sigma,
+                                      self.relative_variance)
+        else:
+            value = finish_trimmed(rows, counts, self.sigma, self.trim_fraction)
+        return value if self.temperature == 1.0 else value / self.temperature
 
     def __call__(self, shaded: Shaded) -> float:
         """Log likelihood of the target given a render (linear colours, full-image arrays)."""

@@ -40,7 +40,13 @@ from albedo_model.params import ImageSize, RenderParameter
 from albedo_model.raycast import RayCaster, visible_points
 from mcmcfit.likelihoods import FACE_BOX_LANDMARKS, face_box_log_lik, landmark_log_lik
 
-__all__ = ["FaceBoxTarget", "LandmarkGeometry", "LandmarkTarget", "target_landmarks"]
+__all__ = ["MIN_LANDMARKS", "FaceBoxTarget", "LandmarkGeometry", "LandmarkTarget",
+           "target_landmarks"]
+
+
+#: Fewest target landmarks known to the model that a fit accepts (a similarity
+#: pose guess needs two; a third constrains the rotation).
+MIN_LANDMARKS = 3
 
 
 def target_landmarks(landmarks) -> dict[str, np.ndarray]:
@@ -150,7 +156,7 @@ class LandmarkTarget:
     Raises
     ------
     InputError
-        No target landmark is a model landmark.
+        Fewer than :data:`MIN_LANDMARKS` target landmarks are model landmarks.
     """
 
     def __init__(self, geometry: LandmarkGeometry, landmarks, *, sigma: float = 4.0,
@@ -165,10 +171,12 @@ class LandmarkTarget:
         self.geometry = geometry
         self.names = [n for n in given if n in known]
         self.unknown = [n for n in given if n not in known]
-        if not self.names:
+        if len(self.names) < MIN_LANDMARKS:
+            count = "none" if not self.names else f"only {len(self.names)}"
             raise InputError(
-                f"none of the {len(given)} target landmarks is a landmark of the model"
-                + (f" (e.g. {self.unknown[0]!r})" if self.unknown else ""))
+                f"{count} of the {len(given)} visible target landmarks is a landmark of the "
+                f"model; a fit needs at least {MIN_LANDMARKS}"
+                + (f" (unknown: {', '.join(self.unknown[:5])})" if self.unknown else ""))
         self.observed = np.array([given[n] for n in self.names])
         self.sigma = float(sigma)
         self.hidden_log_density = (math.log(hidden_probability)

@@ -14,7 +14,9 @@ One step (Schönborn et al. 2017; scalismo's ``MH(Filter_prior(Filter_lm(q)), l_
 4. **image step** (stage 2 only): render x' (only the stages its ``touched``
    blocks invalidate) and accept with ``a3 = l_img(x') - l_img(x)``.
 
-A rejection at any stage returns x. This is delayed acceptance (Christen &
+A rejection at any stage returns x. Moves flagged ``joint`` (proposals drawing
+from an approximate conditional, whose ratio nearly cancels the prior and
+image ratios) take one plain MH test on the whole ratio instead. This is delayed acceptance (Christen &
 Fox 2005) for the product ``l_lm p l_img``: the overall acceptance
 ``min(1, r1) min(1, r2) min(1, r3)`` satisfies detailed balance because
 ``pi_i(x) min(1, pi_i(x') / pi_i(x)) = min(pi_i(x), pi_i(x'))`` is symmetric
@@ -189,6 +191,8 @@ def step(rng: np.random.Generator, state: ChainState, target: Target, proposal: 
     if move.touched == Block.NONE:
         return state, StepInfo(move.name, True, ACCEPTED, 0.0, Block.NONE)
     new = move.params
+    if move.joint:
+        return _joint_step(rng, state, target, move, image=image)
     if move.touched & LANDMARK_BLOCKS:
         lm = float(target.log_lik_landmarks(new))
     else:
@@ -207,6 +211,32 @@ def step(rng: np.random.Generator, state: ChainState, target: Target, proposal: 
     li = float(target.log_lik_image(rs))
     a = _log_ratio(li, state.log_lik_img)
     if not _accept(rng, a):
+        target.reject(rs)
+        return state, StepInfo(move.name, False, REJECTED_IMAGE, a, move.touched)
+    rs = target.accept(rs)
+    return ChainState(new, lp, lm, li, rs), StepInfo(move.name, True, ACCEPTED, a, move.touched)
+
+
+def _joint_step(rng: np.random.Generator, state: ChainState, target: Target, move, *,
+                image: bool) -> tuple[ChainState, StepInfo]:
+    """One plain MH step on the whole ratio ``l_lm p l_img`` (for ``move.joint`` proposals)."""
+    new = move.params
+    lm = float(target.log_lik_landmarks(new)) if move.touched & LANDMARK_BLOCKS \
+        else state.log_lik_lm
+    lp = float(target.log_prior(new))
+    a = (_log_ratio(lm, state.log_lik_lm) + _log_ratio(lp, state.log_prior)
+         + float(move.log_q_ratio))
+    if not image:
+        if math.isnan(a) or not _accept(rng, a):
+            return state, StepInfo(move.name, False, REJECTED_PRIOR, a, move.touched)
+        return (ChainState(new, lp, lm, state.log_lik_img, None),
+                StepInfo(move.name, True, ACCEPTED, a, move.touched))
+    if a == -math.inf or math.isnan(a):
+        return state, StepInfo(move.name, False, REJECTED_PRIOR, a, move.touched)
+    rs = target.render(state.render_state, new, move.touched)
+    li = float(target.log_lik_image(rs))
+    a += _log_ratio(li, state.log_lik_img)
+    if math.isnan(a) or not _accept(rng, a):
         target.reject(rs)
         return state, StepInfo(move.name, False, REJECTED_IMAGE, a, move.touched)
     rs = target.accept(rs)

@@ -1,4 +1,4 @@
-"""Synthetic fitting cases with known truth: a random face of a model rendered over a textured background.
+"""Synthetic fitting cases with known truth: a random face of a model over a textured background.
 
 :func:`synthetic_case` draws model coefficients, a pose, an SH light (and
 optionally harder conditions: very dark skin, a saturated specular

@@ -48,12 +48,19 @@ class Move(NamedTuple):
         ``touches``; ``Block.NONE`` for a move that changed nothing).
     name : str
         Name of the proposal that produced the move (the chosen leaf of a mixture).
+    joint : bool
+        Accept with one Metropolis-Hastings test on the whole posterior ratio
+        instead of the filter chain. Needed by proposals that draw from an
+        approximate conditional (their ``log_q_ratio`` nearly cancels the
+        prior and image ratios, so any single filter holding it alone would
+        reject almost every move).
     """
 
     params: RenderParameter
     log_q_ratio: float
     touched: Block
     name: str
+    joint: bool = False
 
 
 @runtime_checkable

@@ -153,4 +153,4 @@ class SHLightSolver:
         L_new = mu + eps
         ratio = (float(np.sum(eps**2)) - float(np.sum((L - mu) ** 2))) / (2.0 * self.sigma**2)
         return Move(params._replace(environment_map=SHLight(L_new)), ratio, Block.LIGHT,
-                    self.name)
+                    self.name, joint=True)

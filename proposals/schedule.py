@@ -11,20 +11,26 @@ focal scaling (log)          0.15 / 0.05 / 0.01 : 0.2 / 0.6 / 0.2
 pose                         {rotation, distance, scaling} 1/3 each, centred at four
                              landmarks (weight 1 each), + translation 0.2
 shape / albedo / expression  walks 0.2 / 0.1 / 0.025, caricature 0.2 : 0.1 / 0.5 / 0.2 / 0.2
-MoMo                         (shape 1/2 + albedo 1/2) 1/2 + expression 1/2
+MoMo                         (shape 1/2 + albedo 1/2) 1/2 + expression 1/2 (the image
+                             stage's default: expression 1/4, see below)
 colour                       gain log 0.01 / 0.001 / 0.0005 (contrast 0.01, offset 1e-4)
                              : 0.2 / 0.6 / 0.2
 light                        spatial 0.05, bands 0.1, intensity 0.1 (log 0.05),
                              perturbation 0.001 (energy kept), colour 0.01: equal shares
                              of 5/6, solver 1/6 (without a solver the five share 1)
-top level                    pose 1 : colour 1 : MoMo 3 : light 2 (+ specular exponent)
+top level                    pose 1 : colour 1 : MoMo 3 : light 2 (+ specular exponent 0.1,
+                             + albedo conditional / light-albedo exchange 0.25 when
+                             their data are given)
 ===========================  ==========================================================
 
 Differences from the reference, on purpose: every ratio is exact (see each
 proposal's docstring); coefficient walks move chunks of ``block_size``
 coefficients (the reference moves all at once; ``block_size=None`` restores
 that); the specular exponent gets a small-weight log-normal proposal; the SH
-solver is an independence proposal with a proper ratio.
+solver is an independence proposal with a proper ratio; with albedo data the
+image stage adds the albedo conditional (a Gibbs-like draw of every albedo
+coefficient) and light-albedo exchanges (light intensity x albedo ridge),
+both accepted by one joint MH test (:mod:`proposals.albedo_solver`).
 
 This module imports only :mod:`albedo_model` and :mod:`proposals`.
 """
@@ -36,6 +42,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from albedo_model.params import Block, RenderParameter
+from proposals.albedo_solver import AlbedoConditional, AlbedoData, LightAlbedoExchange
 from proposals.base import Mixture, mixture
 from proposals.coefficients import Caricature, CoefficientWalk
 from proposals.colour import ColorTransformWalk
@@ -130,7 +137,7 @@ def _coefficient_mixture(block: Block, block_size: int | None, name: str) -> Mix
     return mixture(*walks, (0.2, Caricature(block, 0.2)), name=name)
 
 
-def momo_proposal(*, block_size: int | None = 10) -> Mixture:
+def momo_proposal(*, block_size: int | None = 10, expression_weight: float = 0.5) -> Mixture:
     """Shape, albedo (shared colour coefficients) and expression mixture.
 
     Parameters
@@ -138,15 +145,19 @@ def momo_proposal(*, block_size: int | None = 10) -> Mixture:
     block_size : int or None
         Coefficients moved per random-walk step (a random chunk); None moves all.
 
+    expression_weight : float in [0, 1]
+        Share of the expression moves (the reference: 1/2).
+
     Returns
     -------
-    Mixture ``(shape 1/2 + albedo 1/2) 1/2 + expression 1/2`` of per-block mixtures.
+    Mixture ``(shape 1/2 + albedo 1/2) (1 - e) + expression e`` of per-block mixtures.
     """
     shape = _coefficient_mixture(Block.SHAPE, block_size, "shape")
     albedo = _coefficient_mixture(Block.ALBEDO, block_size, "albedo")
     expression = _coefficient_mixture(Block.EXPRESSION, block_size, "expression")
     identity = mixture((0.5, shape), (0.5, albedo), name="identity")
-    return mixture((0.5, identity), (0.5, expression), name="momo")
+    return mixture((1.0 - expression_weight, identity), (expression_weight, expression),
+                   name="momo")
 
 
 def colour_proposal() -> Mixture:
@@ -185,7 +196,9 @@ def specular_exponent_proposal() -> Mixture:
 def default_image_proposal(landmark_point: LandmarkPoint | None, *,
                            solver_data: LightData | None = None, specular_weight: float = 0.1,
                            block_size: int | None = 10, solver_sigma: float = 0.005,
-                           solver_ridge: float = 1e-4) -> Mixture:
+                           solver_ridge: float = 1e-4, albedo_data: AlbedoData | None = None,
+                           albedo_weight: float = 0.25, pixel_sigma: float = 0.043,
+                           expression_weight: float = 0.25) -> Mixture:
     """The image-stage proposal: pose 1 : colour 1 : MoMo 3 : light 2 : specular exponent.
 
     Parameters
@@ -201,13 +214,35 @@ def default_image_proposal(landmark_point: LandmarkPoint | None, *,
         Chunk size of the coefficient random walks.
     solver_sigma, solver_ridge : float
         Passed to :func:`light_proposal`.
+    albedo_data : callable, optional
+        Data of the albedo conditional proposal
+        (:class:`~proposals.albedo_solver.AlbedoConditional`); without it the
+        albedo moves only by the random walks.
+    albedo_weight : float
+        Top-level weight of the albedo conditional moves: half a Gibbs-like draw
+        of the albedo, half light-albedo exchanges (light scale log sigma 0.1 /
+        0.03, albedo redrawn under the new light).
+    pixel_sigma : float
+        Pixel noise of the image likelihood (for the albedo conditional).
+    expression_weight : float
+        Share of expression moves in the MoMo mixture. 1/4 rather than the
+        reference's 1/2: the default model has 3 expression components (BFM
+        has 100), and every expression move re-casts the rays.
     """
+    extra = []
+    if albedo_data is not None and albedo_weight > 0:
+        extra.append((albedo_weight, mixture(
+            (0.5, AlbedoConditional(albedo_data, sigma=pixel_sigma)),
+            (0.25, LightAlbedoExchange(albedo_data, log_sigma=0.1, sigma=pixel_sigma)),
+            (0.25, LightAlbedoExchange(albedo_data, log_sigma=0.03, sigma=pixel_sigma)),
+            name="albedo-conditional")))
     return mixture(
         (1.0, pose_proposal(landmark_point)),
         (1.0, colour_proposal()),
-        (3.0, momo_proposal(block_size=block_size)),
+        (3.0, momo_proposal(block_size=block_size, expression_weight=expression_weight)),
         (2.0, light_proposal(solver_data, solver_sigma=solver_sigma, solver_ridge=solver_ridge)),
         (specular_weight, specular_exponent_proposal()),
+        *extra,
         name="image",
     )
 

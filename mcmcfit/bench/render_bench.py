@@ -36,7 +36,7 @@ from albedo_model.params import (
     Block, MoMoCoefficients, Pose, RenderParameter, SHLight, default_square, fit_to_image_size,
 )
 from albedo_model.camera import camera_rays
-from albedo_model.raycast import RayCaster, default_threads
+from albedo_model.raycast import RayCaster, default_threads, embree_pass
 from albedo_model.render import Renderer
 from mcmcfit.bench.naive_step import NaiveStep
 from mcmcfit.bench.synthetic_face import synthetic_face_model
@@ -81,6 +81,7 @@ class BenchResult:
     n_vertices: int
     n_triangles: int
     embree_ms: float
+    embree_bare_ms: float
     load_before: tuple[float, float, float]
     load_after: tuple[float, float, float]
 
@@ -218,22 +219,28 @@ def _time_size(model, size: int, steps: int, warmup: int, naive_steps: int, thre
     return rows, method
 
 
-def _embree_reference(model, size: int = 250, repeats: int = 15) -> float:
-    """Median ms of one single-threaded :meth:`RayCaster.cast` of the mean face at ``size``².
+def _embree_reference(model, size: int = 250, repeats: int = 15) -> tuple[float, float]:
+    """Median ms of one single-threaded :meth:`RayCaster.cast` of the mean face at ``size``²,
+    and of the bare Embree query inside it (:func:`albedo_model.raycast.embree_pass`),
+    timed alternately.
 
     A yardstick of the machine: ``performance-notes.md`` measured 6.6 ms for the
     bare Embree call on its 53k-vertex face (1 thread, non-robust traversal, 62 %
-    coverage); ``cast`` adds the back-face test (a few per cent).
+    coverage); ``cast`` adds the back-face test and its output arrays (a few per cent).
     """
     params = face_scene(model, size)
     origins, directions = camera_rays(params.camera, params.image_size, params.pose, params.view)
+    tfar = params.camera.far - params.camera.near
     caster = RayCaster(model.vertices, model.triangles, threads=1, update="rebuild")
-    times = []
+    times: dict[str, list[float]] = {"cast": [], "bare": []}
     for _ in range(repeats + 1):
-        t0 = time.perf_counter()
-        caster.cast(origins, directions)
-        times.append(time.perf_counter() - t0)
-    return 1e3 * float(np.median(times[1:]))
+        for key, run in (("cast", lambda: caster.cast(origins, directions, tfar=tfar,
+                                                       image_shape=(size, size))),
+                         ("bare", lambda: embree_pass(caster, origins, directions, tfar))):
+            t0 = time.perf_counter()
+            run()
+            times[key].append(time.perf_counter() - t0)
+    return tuple(1e3 * float(np.median(times[k][1:])) for k in ("cast", "bare"))
 
 
 def run_render_bench(sizes: Sequence[int] = (128, 250, 512), steps: int = 40, *,
@@ -276,7 +283,7 @@ def run_render_bench(sizes: Sequence[int] = (128, 250, 512), steps: int = 40, *,
     build_s = time.perf_counter() - t0
     log(f"model: {model.n_vertices} vertices, {model.n_triangles} triangles, "
         f"built in {build_s:.2f} s")
-    embree_ms = _embree_reference(model)
+    embree_ms, embree_bare_ms = _embree_reference(model)
     rows, method = [], "?"
     for size in sizes:
         size_rows, method = _time_size(model, int(size), steps, warmup, naive_steps, threads,
@@ -284,7 +291,8 @@ def run_render_bench(sizes: Sequence[int] = (128, 250, 512), steps: int = 40, *,
         rows += size_rows
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return BenchResult(rows, int(cores or 1), threads, method, steps, build_s, model.n_vertices,
-                       model.n_triangles, embree_ms, load_before, os.getloadavg())
+                       model.n_triangles, embree_ms, embree_bare_ms, load_before,
+                       os.getloadavg())
 
 
 #: Proposal mix of the steps/s summary (as in performance-notes.md §4).
@@ -299,7 +307,8 @@ def format_table(result: BenchResult) -> str:
         f"jax {jax.__version__}",
         f"model: {result.n_vertices} vertices, {result.n_triangles} triangles "
         f"(built in {result.build_s:.2f} s)",
-        f"machine yardstick: 1-thread ray cast of the face at 250x250 {result.embree_ms:.1f} ms "
+        f"machine yardstick: 1-thread ray cast of the face at 250x250 {result.embree_ms:.1f} ms, "
+        f"bare Embree {result.embree_bare_ms:.1f} ms "
         f"(performance-notes.md, bare Embree on its machine: 6.6 ms)",
         f"load average (1 min) before {result.load_before[0]:.2f}, "
         f"after {result.load_after[0]:.2f}",

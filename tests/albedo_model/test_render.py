@@ -238,6 +238,47 @@ def test_compose_fuses_shading_with_a_function():
     assert int(count) == out.mask.sum()
 
 
+def test_likelihood_of_a_step_fuses_the_attributes_it_changed():
+    """compose() evaluates a proposal's new pixel attributes inside its own program, stores
+    none of them, and gives the value of the stored attributes; an accepted state computes
+    them when a later step reads them."""
+    import jax.numpy as jnp
+    model = bumpy_model()
+    renderer = Renderer(model, gamma=True)
+    state = renderer.init_state(scene(sh=SHLight.frontal()))
+    target = tuple(jnp.full(state.hits.prim_id.shape, 0.3 + 0.1 * c, jnp.float32) for c in range(3))
+
+    def sq_error(rgb, mask, target):
+        return sum(jnp.sum(jnp.where(mask, (rgb[c] - target[c]) ** 2, 0.0)) for c in range(3))
+
+    def reference(out):
+        return sum(((out.image[..., c] - (0.3 + 0.1 * c)) ** 2)[out.mask].sum() for c in range(3))
+
+    def caches(s):
+        return s.pixel_hits, s.pixel_geometry, s.pixel_albedo, s.pixel_light
+
+    fused = renderer.compose(sq_error)
+    rng = np.random.default_rng(4)
+    for touched, params in moves(state.params, rng):
+        cand = renderer.update(state, params, touched)
+        got = float(fused(cand, target))
+        new = [c for c, old in zip(caches(cand), caches(state)) if c is not old]
+        assert not any(c.computed for c in new), touched
+        assert got == pytest.approx(reference(renderer.image(cand)), rel=1e-5)
+        assert all(c.computed for c in caches(cand))  # image() read them
+        renderer.reject()
+    # accept a shape step whose attributes were only fused, then step the light
+    m = state.params.momo
+    shaped = state.params._replace(momo=m._replace(shape=m.shape + 0.5))
+    cand = renderer.update(state, shaped, Block.SHAPE)
+    float(fused(cand, target))
+    state = renderer.accept(cand)
+    lit = shaped._replace(environment_map=SHLight(shaped.environment_map.coefficients * 0.8))
+    got = float(fused(renderer.update(state, lit, Block.LIGHT), target))
+    assert state.pixel_geometry.computed and state.pixel_albedo.computed
+    assert got == pytest.approx(reference(Renderer(model, gamma=True).render(lit)), rel=1e-5)
+
+
 def test_steps_reuse_cached_pixel_attributes():
     model = bumpy_model()
     renderer = Renderer(model)

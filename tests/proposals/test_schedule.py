@@ -97,7 +97,7 @@ def _probabilities(proposal):
 
 def test_reference_scales_and_weights():
     probs = _probabilities(default_image_proposal(landmark_point, solver_data=solver_data,
-                                                  specular_weight=0.0))
+                                                  specular_weight=0.0, expression_weight=0.5))
     assert sum(probs.values()) == pytest.approx(1.0)
     pose, colour, momo, light = 1 / 7, 1 / 7, 3 / 7, 2 / 7
     centred = pose / 4.2  # each of the four landmarks

@@ -1,0 +1,50 @@
+"""``mcmcfit bench fit``: a tiny schedule through the command line; proposal kinds."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import pytest
+
+from mcmcfit.bench.fit_bench import proposal_kind
+from mcmcfit.cli import main
+
+pytestmark = pytest.mark.embree
+
+
+def test_proposal_kind_strips_scales_and_centring():
+    assert proposal_kind("albedo-0.1") == "albedo"
+    assert proposal_kind("albedo-caricature-0.2") == "albedo-caricature"
+    assert proposal_kind("focal-0.05@left.lips.corner") == "focal"
+    assert proposal_kind("sh-perturb-fixed-0.001") == "sh-perturb-fixed"
+    assert proposal_kind("light-albedo-1e-05") == "light-albedo"
+    assert proposal_kind("sh-solver") == "sh-solver"
+
+
+def test_bench_fit_tiny_schedule(default_model_file, tmp_path, capsys):
+    png, js = tmp_path / "curve.png", tmp_path / "bench.json"
+    assert main(["bench", "fit", "--steps", "40", "--landmark-steps", "30", "--size", "96",
+                 "--checkpoints", "20,40", "-o", str(png), "--json", str(js), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"wall time \d+\.\d s: setup .* stage 1 .* stage 2 .*steps/s\)", out)
+    assert re.search(r"reference pipeline ~20 min per fit: \d+\.\dx faster", out)
+    assert "time per proposal kind, stage 2" in out and "accuracy vs time" in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    data = json.loads(js.read_text())
+    curve = data["curve"]
+    assert [r["steps"] for r in curve] == [20, 40]
+    assert curve[0]["wall_s"] <= curve[1]["wall_s"] <= data["timings"]["total_s"] + 1e-6
+    assert all(math.isfinite(r["rmse"]) and 0 <= r["coverage"] <= 1 for r in curve)
+    kinds = data["stage2_kinds"]
+    assert sum(k["steps"] for k in kinds.values()) == 40
+    # the per-kind times add up to the stage's wall time (minus loop set-up)
+    total = sum(k["seconds"] for k in kinds.values())
+    assert total <= data["timings"]["stage2_s"] + 1e-6 and total > 0.5 * data["timings"]["stage2_s"]
+
+
+def test_bench_fit_rejects_a_missing_output_folder(tmp_path, capsys):
+    assert main(["bench", "fit", "--steps", "5", "-o", str(tmp_path / "no" / "x.png"),
+                 "--quiet"]) == 2
+    assert "does not exist" in capsys.readouterr().err
