@@ -108,6 +108,30 @@ def _skin_coefficients(model: MorphableModel, target: np.ndarray, rank: int) -> 
     return np.linalg.solve(w.T @ w + 1e-3 * np.eye(rank), w.T @ resid)
 
 
+#: A drawn face is redrawn when more than this fraction of its vertices has a
+#: diffuse channel below :data:`_MIN_ALBEDO` or above 1 (a linear Gaussian albedo
+#: model spanning Fitzpatrick I-VI puts about one draw in six below type VI).
+_MAX_OUT_OF_GAMUT = 0.05
+_MIN_ALBEDO = 0.005
+
+
+def _physical_color(model: MorphableModel, color: np.ndarray, k: int, seed: int,
+                    tries: int = 100) -> np.ndarray:
+    """``color``, or a redraw of its first ``k`` entries whose diffuse albedo is physical.
+
+    Redraws come from their own generator (``[seed, 1, attempt]``), so the other
+    draws of a case (pose, light, ...) do not depend on whether a redraw happened.
+    """
+    for attempt in range(tries + 1):
+        d = model.diffuse_instance(color).reshape(-1, 3)
+        bad = (d.min(axis=1) < _MIN_ALBEDO) | (d.max(axis=1) > 1.0)
+        if bad.mean() <= _MAX_OUT_OF_GAMUT:
+            return color
+        color = color.copy()
+        color[:k] = np.random.default_rng([seed, 1, attempt]).normal(0.0, 1.0, k)
+    raise InputError(f"no physical diffuse albedo in {tries} draws of the model")
+
+
 def _background(rng: np.random.Generator, h: int, w: int, kind: str) -> np.ndarray:
     """Gamma-encoded background: smooth coloured blobs, stripes and fine noise in [0, 1]."""
     if kind == "flat":
@@ -186,6 +210,7 @@ def synthetic_case(model: MorphableModel, *, seed: int = 0, size: int = 250,
     shape[:k_shape] = rng.normal(0.0, 1.0, k_shape)
     color = np.zeros(ranks["diffuse"])
     color[:k_color] = rng.normal(0.0, 1.0, k_color)
+    color = _physical_color(model, color, k_color, seed)
     expression = np.zeros(ranks.get("expression", 0))
     expression[:k_expr] = rng.normal(0.0, 0.7, k_expr)
     if skin == "dark":

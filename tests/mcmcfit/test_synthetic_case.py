@@ -91,3 +91,12 @@ def test_default_model_dark_skin_and_lfw_landmarks(default_model):
     assert np.all(np.abs(dark - np.asarray(DARK_SKIN_ALBEDO)) < 0.02)
     normal = synthetic_case(default_model, seed=0)
     assert np.all(normal.diffuse[normal.visible].mean(0) > dark)
+
+
+def test_default_model_cases_have_physical_albedo(default_model):
+    # about one in six plain N(0, 1) draws of the default model is darker than
+    # Fitzpatrick VI somewhere (negative blue); cases must be physical faces
+    for seed in range(25):
+        d = synthetic_case(default_model, seed=seed, size=32).diffuse
+        out = (d.min(axis=1) < 0.005) | (d.max(axis=1) > 1.0)
+        assert out.mean() <= 0.05, seed
