@@ -12,8 +12,12 @@ __all__ = ["register", "run", "add_schedule_arguments", "config_from_args", "cli
 
 
 def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "10000",
-                           landmark_default: str = "5000", chains_default: str = "2") -> None:
-    """Options of the sampling schedule and the output (shared with ``mcmcfit demo``)."""
+                           landmark_default: str = "5000", chains_default: str = "1") -> None:
+    """Options of the sampling schedule and the output (shared with ``mcmcfit demo``).
+
+    The defaults shown are FitConfig's (not imported here: it loads JAX, and every CLI
+    start builds this parser); ``test_cli_fit`` checks that they agree.
+    """
     p.add_argument("--steps", type=int, metavar="N",
                    help=f"image-stage steps per chain (default {steps_default})")
     p.add_argument("--landmark-steps", type=int, metavar="N",

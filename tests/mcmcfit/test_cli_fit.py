@@ -137,3 +137,18 @@ def test_demo_prints_albedo_error(default_model_file, tmp_path, capsys):
     vis = post["visible"]  # fitted view; the summary uses the true view: compare loosely
     rmse_fitted_view = np.sqrt(np.mean((post["diffuse_mean"][vis] - true_diffuse[vis]) ** 2))
     assert rmse_fitted_view == pytest.approx(truth["diffuse"]["rmse"], rel=0.2, abs=0.01)
+
+
+def test_help_shows_the_fit_config_defaults():
+    import argparse
+
+    from mcmcfit.commands.fit import add_schedule_arguments
+    from mcmcfit.fit_config import FitConfig
+
+    p = argparse.ArgumentParser()
+    add_schedule_arguments(p)
+    text = " ".join(p.format_help().split("options:", 1)[1].split())
+    cfg = FitConfig()
+    for option, value in (("--steps N", cfg.steps), ("--landmark-steps N", cfg.landmark_steps),
+                          ("--chains K", cfg.chains)):
+        assert f"{option} " in text and f"(default {value})" in text.split(option, 1)[1][:120]
