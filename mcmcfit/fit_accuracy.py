@@ -16,7 +16,7 @@ from albedo_model.params import Pose
 from mcmcfit.param_vector import ParamLayout
 from mcmcfit.posterior import albedo_posterior
 
-__all__ = ["AlbedoScore", "albedo_score", "colour_columns", "pose_error_deg"]
+__all__ = ["AlbedoScore", "albedo_score", "colour_columns", "interval_error", "pose_error_deg"]
 
 
 def pose_error_deg(pose: Pose, truth: Pose) -> float:
@@ -47,14 +47,37 @@ class AlbedoScore(NamedTuple):
     n_samples: int
 
 
-def colour_columns(layout: ParamLayout) -> list[int]:
-    """Column indices of the albedo coefficients ``color.0, color.1, ...`` in ``layout``."""
-    out = []
-    i = 0
-    while f"color.{i}" in layout.names:
-        out.append(layout.index(f"color.{i}"))
-        i += 1
-    return out
+def colour_columns(layout: ParamLayout) -> slice:
+    """Columns of the albedo coefficients ``color.0, color.1, ...`` in ``layout``."""
+    return layout.slice("color")
+
+
+def interval_error(mean, lo, hi, true, visible) -> dict:
+    """RMSE, mean absolute error and interval coverage of per-vertex estimates.
+
+    Parameters
+    ----------
+    mean, lo, hi : (n, 3) float arrays
+        Posterior mean and central-interval bounds.
+    true : (n, 3) float array
+    visible : (n,) bool
+        Vertices scored.
+
+    Returns
+    -------
+    dict
+        ``rmse`` and ``mean_abs`` over visible vertices and channels, and
+        ``coverage``: the fraction of (vertex, channel) true values inside
+        ``[lo, hi]`` (widened by 1e-6 for float32 bounds); NaN with no vertex.
+    """
+    sel = np.asarray(visible, bool)
+    if not sel.any():
+        return {"rmse": math.nan, "coverage": math.nan, "mean_abs": math.nan}
+    t = np.asarray(true, np.float64)[sel]
+    d = np.asarray(mean, np.float64)[sel] - t
+    inside = (t >= np.asarray(lo)[sel] - 1e-6) & (t <= np.asarray(hi)[sel] + 1e-6)
+    return {"rmse": float(np.sqrt(np.mean(d ** 2))), "mean_abs": float(np.mean(np.abs(d))),
+            "coverage": float(np.mean(inside))}
 
 
 def albedo_score(model: MorphableModel, samples: np.ndarray, layout: ParamLayout,
@@ -74,11 +97,8 @@ def albedo_score(model: MorphableModel, samples: np.ndarray, layout: ParamLayout
     level : float
         Central interval probability (0.9: 5 % / 95 %).
     """
-    cols = colour_columns(layout)
-    post = albedo_posterior(model.diffuse, np.asarray(samples)[:, cols], level=level)
-    vis = np.asarray(visible, bool)
-    t = np.asarray(true_diffuse, np.float64)[vis]
-    err = post.mean[vis].astype(np.float64) - t
-    inside = (post.lo[vis] <= t + 1e-6) & (t - 1e-6 <= post.hi[vis])
-    return AlbedoScore(float(np.sqrt(np.mean(err * err))), float(np.mean(inside)),
-                       float(level), int(np.asarray(samples).shape[0]))
+    post = albedo_posterior(model.diffuse, np.asarray(samples)[:, colour_columns(layout)],
+                            level=level)
+    err = interval_error(post.mean, post.lo, post.hi, true_diffuse, visible)
+    n_samples = int(np.asarray(samples).shape[0])
+    return AlbedoScore(err["rmse"], err["coverage"], float(level), n_samples)

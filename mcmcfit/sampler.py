@@ -16,9 +16,9 @@ One step (Schönborn et al. 2017; scalismo's ``MH(Filter_prior(Filter_lm(q)), l_
 
 A rejection at any stage returns x. Moves flagged ``joint`` (proposals drawing
 from an approximate conditional, whose ratio nearly cancels the prior and
-image ratios) take one plain MH test on the whole ratio instead. This is delayed acceptance (Christen &
-Fox 2005) for the product ``l_lm p l_img``: the overall acceptance
-``min(1, r1) min(1, r2) min(1, r3)`` satisfies detailed balance because
+image ratios) take one plain MH test on the whole ratio instead. The rest is
+delayed acceptance (Christen & Fox 2005) for the product ``l_lm p l_img``: the
+overall acceptance ``min(1, r1) min(1, r2) min(1, r3)`` satisfies detailed balance because
 ``pi_i(x) min(1, pi_i(x') / pi_i(x)) = min(pi_i(x), pi_i(x'))`` is symmetric
 for each factor (the proposal ratio sits in the first one). In stage 1 step 4
 is skipped: the chain targets ``l_lm p``.

@@ -1,14 +1,15 @@
 """Errors of a posterior albedo against a known truth (synthetic cases, the demo).
 
-This module imports only numpy (and the posterior summary types).
+This module imports numpy and :mod:`mcmcfit.fit_accuracy` (the error measures).
 """
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
+
+from mcmcfit.fit_accuracy import interval_error
 
 __all__ = ["Truth", "albedo_error"]
 
@@ -32,17 +33,6 @@ class Truth(NamedTuple):
     params: object = None
 
 
-def _part_error(mean, lo, hi, true, visible) -> dict:
-    sel = np.asarray(visible, bool)
-    if not sel.any():
-        return {"rmse": math.nan, "coverage": math.nan, "mean_abs": math.nan}
-    t = np.asarray(true, np.float64)[sel]
-    d = np.asarray(mean, np.float64)[sel] - t
-    inside = (t >= np.asarray(lo)[sel]) & (t <= np.asarray(hi)[sel])
-    return {"rmse": float(np.sqrt(np.mean(d ** 2))), "mean_abs": float(np.mean(np.abs(d))),
-            "coverage": float(np.mean(inside))}
-
-
 def albedo_error(post, truth: Truth) -> dict:
     """RMSE and interval coverage of the posterior albedo on the truly visible vertices.
 
@@ -61,9 +51,9 @@ def albedo_error(post, truth: Truth) -> dict:
         the truth has parameters (filled by the caller).
     """
     out = {"interval": float(post.diffuse.level), "n_visible": int(np.sum(truth.visible)),
-           "diffuse": _part_error(post.diffuse.mean, post.diffuse.lo, post.diffuse.hi,
+           "diffuse": interval_error(post.diffuse.mean, post.diffuse.lo, post.diffuse.hi,
                                   truth.diffuse, truth.visible)}
     if post.specular is not None and truth.specular is not None:
-        out["specular"] = _part_error(post.specular.mean, post.specular.lo, post.specular.hi,
+        out["specular"] = interval_error(post.specular.mean, post.specular.lo, post.specular.hi,
                                       truth.specular, truth.visible)
     return out
