@@ -24,6 +24,7 @@ imports only :mod:`albedo_model.params`.
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -34,7 +35,7 @@ __all__ = [
     "euler_rotation", "world_from_model", "eye_from_world", "eye_from_model",
     "model_from_eye", "to_eye", "pixel_scale", "principal_point_px", "project_eye", "project",
     "ndc_depth", "eye_depth", "camera_rays", "eye_position_model", "towards_camera_model",
-    "unproject",
+    "unproject", "pixel_window",
 ]
 
 
@@ -208,6 +209,60 @@ def project(points_model: np.ndarray, pose: Pose, view: View, camera: Camera,
     depth : (n,) float64, OpenGL window depth in [0, 1] (smaller is nearer)
     """
     return project_eye(to_eye(points_model, pose, view), camera, image_size)
+
+
+def pixel_window(bounds: np.ndarray, camera: Camera, image_size: ImageSize, pose: Pose,
+                 view: View, margin: int = 1) -> tuple[int, int, int, int] | None:
+    """The pixels whose rays can meet a model-frame box: rows ``y0:y1``, columns ``x0:x1``.
+
+    Parameters
+    ----------
+    bounds : (2, 3) float array
+        Corners ``(min, max)`` of an axis-aligned box in the model frame (e.g. a
+        mesh's bounds).
+    camera, image_size, pose, view
+        Scene parameters.
+    margin : int
+        Extra pixels on each side (against rounding).
+
+    Returns
+    -------
+    (y0, y1, x0, x1) or None
+        Clipped to the image (possibly empty); None when part of the box lies
+        at or behind the eye plane of a perspective camera, where projection
+        does not bound it (cast every pixel then).
+
+    Notes
+    -----
+    A box in front of the eye projects inside the bounding rectangle of its
+    eight projected corners, so every pixel outside the window misses.
+    """
+    b = np.asarray(bounds, np.float64).reshape(2, 3)
+    corners = np.where(_CORNERS, b[1], b[0])
+    r, t, s = eye_from_model(pose, view)
+    eye = (s * corners) @ r.T + t
+    if camera.orthographic:
+        denom = float(camera.near)
+    else:
+        denom = -eye[:, 2]
+        if denom.min() <= 1e-9 * max(1.0, float(camera.near)):
+            return None
+    fx, fy = pixel_scale(camera, image_size)
+    cx, cy = principal_point_px(camera, image_size)
+    u = cx + fx * eye[:, 0] / denom
+    v = cy - fy * eye[:, 1] / denom
+    if not (np.isfinite(u).all() and np.isfinite(v).all()):
+        return None
+    w, h = int(image_size.width), int(image_size.height)
+    x0 = min(max(math.floor(u.min()) - margin, 0), w)
+    x1 = min(max(math.floor(u.max()) + 1 + margin, x0), w)
+    y0 = min(max(math.floor(v.min()) - margin, 0), h)
+    y1 = min(max(math.floor(v.max()) + 1 + margin, y0), h)
+    return y0, y1, x0, x1
+
+
+#: Which of (min, max) each of a box's eight corners takes per axis.
+_CORNERS = np.array([[(i >> 2) & 1, (i >> 1) & 1, i & 1] for i in range(8)], bool)
 
 
 _RAY_BLOCK = 32768

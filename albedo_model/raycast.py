@@ -150,6 +150,7 @@ class RayCaster:
         self.robust = bool(robust)
         self._triangles = np.ascontiguousarray(tri, dtype=np.int32)
         self._n_vertices = len(v)
+        self._bounds = _bounds(v)
         want_refit = update != "rebuild"
         ok, reason = refit_check() if want_refit else (False, "rebuild requested")
         if want_refit and not ok and update == "refit":
@@ -170,6 +171,11 @@ class RayCaster:
     @property
     def n_vertices(self) -> int:
         return self._n_vertices
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float64: min and max corner of the current vertices (read-only)."""
+        return self._bounds
 
     @property
     def triangles(self) -> np.ndarray:
@@ -210,6 +216,7 @@ class RayCaster:
         vertices : (n, 3) float array, model frame, same n as at construction
         """
         v = self._checked_vertices(vertices, self._n_vertices)
+        self._bounds = _bounds(v)
         if self._refit is not None:
             try:
                 self._refit.update(v)
@@ -273,7 +280,8 @@ class RayCaster:
 
     def cast(self, origins: np.ndarray, directions: np.ndarray, *,
              tfar: float | None = None, cull_backfaces: bool = True,
-             image_shape: tuple[int, int] | None = None) -> RayHits:
+             image_shape: tuple[int, int] | None = None,
+             window: tuple[int, int, int, int] | None = None) -> RayHits:
         """Nearest hits of a batch of rays.
 
         Parameters
@@ -291,6 +299,10 @@ class RayCaster:
             the grid known, every miss between two hits (horizontally or
             vertically) is re-cast 1/1000 pixel towards a neighbour, which
             closes these leaks and leaves true gaps missing.
+        window : (y0, y1, x0, x1), optional
+            With ``image_shape``: cast only the rays of these rows and columns
+            and report the others as misses (e.g. outside
+            :func:`albedo_model.camera.pixel_window`, where nothing can be hit).
 
         Returns
         -------
@@ -302,12 +314,54 @@ class RayCaster:
             raise InputError(f"directions must have shape (1, 3) or {o.shape}, got {d.shape}")
         if image_shape is not None and int(image_shape[0]) * int(image_shape[1]) != len(o):
             raise InputError(f"image_shape {tuple(image_shape)} does not match {len(o)} rays")
+        if window is not None:
+            if image_shape is None:
+                raise InputError("a window needs image_shape")
+            h, w = (int(x) for x in image_shape)
+            y0, y1, x0, x1 = (int(x) for x in window)
+            if not (0 <= y0 <= y1 <= h and 0 <= x0 <= x1 <= w):
+                raise InputError(f"window {tuple(window)} is not inside the image {h}x{w}")
+            if x1 - x0 > 0.75 * w:  # see _cast_window
+                x0, x1 = 0, w
+            if (y0, y1, x0, x1) != (0, h, 0, w):
+                return self._cast_window(o, d, tfar, cull_backfaces, h, w, (y0, y1, x0, x1))
         limit = None if tfar is None else float(tfar)
         prim, bary, t, back = self._intersect(o, d, limit)
         if cull_backfaces and back.any():
             self._continue_past_backfaces(o, d, limit, prim, bary, t, np.flatnonzero(back))
         if image_shape is not None and not self.robust:
             self._close_leaks(o, d, limit, cull_backfaces, prim, bary, t, image_shape)
+        return RayHits(prim, bary, t)
+
+    def _cast_window(self, o, d, tfar, cull, h, w, window) -> RayHits:
+        """:meth:`cast` of the window's rays of an (h, w) grid; misses elsewhere.
+
+        Whole rows are contiguous slices of the ray arrays (no copy); :meth:`cast`
+        widens a window to whole rows unless that adds a third (copying the
+        rays and hits costs about as much as casting a few percent of them).
+        """
+        y0, y1, x0, x1 = window
+        prim = np.full(h * w, -1, np.int32)
+        bary = np.zeros((h * w, 2), np.float32)
+        t = np.full(h * w, np.inf, np.float32)
+        if y1 <= y0 or x1 <= x0:
+            return RayHits(prim, bary, t)
+        rows = slice(y0 * w, y1 * w)
+        if (x0, x1) == (0, w):
+            r = self.cast(o[rows], d if len(d) == 1 else d[rows], tfar=tfar,
+                          cull_backfaces=cull, image_shape=(y1 - y0, w))
+            prim[rows], bary[rows], t[rows] = r.prim_id, r.bary, r.t
+            return RayHits(prim, bary, t)
+
+        def sub(a):
+            return np.ascontiguousarray(a.reshape(h, w, 3)[y0:y1, x0:x1]).reshape(-1, 3)
+
+        shape = (y1 - y0, x1 - x0)
+        r = self.cast(sub(o), d if len(d) == 1 else sub(d), tfar=tfar, cull_backfaces=cull,
+                      image_shape=shape)
+        prim.reshape(h, w)[y0:y1, x0:x1] = r.prim_id.reshape(shape)
+        bary.reshape(h, w, 2)[y0:y1, x0:x1] = r.bary.reshape(*shape, 2)
+        t.reshape(h, w)[y0:y1, x0:x1] = r.t.reshape(shape)
         return RayHits(prim, bary, t)
 
     def _continue_past_backfaces(self, o, d, limit, prim, bary, t, idx) -> None:
@@ -381,6 +435,18 @@ class RayCaster:
         parts = self._split_run(self._occluded_run, o, d, tmax)
         ids = parts[0] if len(parts) == 1 else np.concatenate(parts)
         return np.asarray(ids) >= 0
+
+
+def _bounds(v: np.ndarray) -> np.ndarray:
+    """(2, 3) min and max corner of (n, 3) points (read-only float64)."""
+    b = np.zeros((2, 3))
+    if len(v):
+        # per column: an axis-0 reduction of an (n, 3) array is 10x slower
+        for c in range(3):
+            col = v[:, c]
+            b[0, c], b[1, c] = col.min(), col.max()
+    b.flags.writeable = False
+    return b
 
 
 def embree_pass(caster: RayCaster, origins: np.ndarray, directions: np.ndarray,

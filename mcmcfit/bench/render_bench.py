@@ -3,16 +3,18 @@
 A sampler step is: the proposal's parameters -> :meth:`Renderer.update` (only the
 stages the changed block makes stale) -> shading fused with a Gaussian pixel
 log-likelihood (:meth:`Renderer.compose`) -> the scalar on the host -> accept or
-reject (alternating, as a sampler at 50 % acceptance would). The same steps are
+reject (at fixed rates close to a real fit's, :data:`ACCEPT_EVERY`). The same steps are
 timed on the naive path (:class:`mcmcfit.bench.naive_step.NaiveStep`, nothing
 cached), and with the specular term switched off (an effect that is off must be
 cheaper, not multiplied by zero).
 
-Each (kind, path) is a chain of its own, and all chains of one image size take
-turns of five steps, so that other processes on the machine slow them alike
-and the ratios stay meaningful (within a turn the caches are warm, as in a run
-of one kind); the medians are still wall times under whatever load there was
-(the table prints the load average).
+Each path is one chain that mixes the proposal kinds as a sampler does
+(:data:`CYCLE`: shape 40 %, pose, albedo and light 20 % each, interleaved), so
+that every step finds the caches a real fit leaves for it; steps are timed per
+kind. The chains of one image size take turns of one cycle each, so that other
+processes on the machine slow them alike and the ratios stay meaningful; the
+medians are still wall times under whatever load there was (the table prints
+the load average).
 
 Model: :func:`mcmcfit.bench.synthetic_face.synthetic_face_model` (53,824
 vertices, 106,722 triangles; shape 50 + expression 5, albedo 50 shared), seen
@@ -31,6 +33,7 @@ from collections.abc import Callable, Sequence
 import jax
 import jax.numpy as jnp
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from albedo_model.params import (
     Block, MoMoCoefficients, Pose, RenderParameter, SHLight, default_square, fit_to_image_size,
@@ -48,12 +51,18 @@ __all__ = ["KINDS", "MIX", "BenchRow", "BenchResult", "face_scene", "run_render_
 KINDS = {"pose": Block.POSE, "shape": Block.SHAPE, "albedo": Block.ALBEDO, "light": Block.LIGHT}
 _BLOCK = 10  # coefficients per shape / albedo proposal
 _SIGMA = 0.05  # pixel noise of the likelihood (linear RGB)
-_CHUNK = 5  # consecutive steps of one chain before the next chain's turn
 
 
 @dataclasses.dataclass(frozen=True)
 class BenchRow:
-    """Median ms per step of one proposal kind at one image size."""
+    """ms per step of one proposal kind at one image size.
+
+    ``ours_ms``, ``ours_no_specular_ms`` and ``naive_ms`` are medians of chains
+    making only this kind of proposal (steady state, as performance-notes.md §4
+    measured); ``mixed_ms`` / ``mixed_mean_ms`` the median / mean of this kind's
+    steps in a chain mixing all kinds as a sampler does (colder caches, and the
+    first step after an accepted geometry builds the per-pixel caches).
+    """
 
     size: int
     kind: str
@@ -61,6 +70,9 @@ class BenchRow:
     ours_no_specular_ms: float
     naive_ms: float
     coverage: float
+    mixed_ms: float
+    mixed_mean_ms: float
+    naive_mean_ms: float
 
     @property
     def speedup(self) -> float:
@@ -142,81 +154,129 @@ def _target(renderer: Renderer, params: RenderParameter, rng: np.random.Generato
     return tuple(jax.device_put(np.ascontiguousarray(img[:, c])) for c in range(3))
 
 
-class _Chain:
-    """One proposal kind on one path: steps of a sampler at 50 % acceptance, timed."""
+#: Every n-th proposal of a kind is accepted: rounded from the demo fit's rates
+#: (``summary.json``: shape 24 %, pose 3-26 %, albedo 46 %, SH light 21 %).
+ACCEPT_EVERY = {"shape": 4, "pose": 4, "albedo": 2, "light": 4}
 
-    def __init__(self, kind: str, params: RenderParameter, rng: np.random.Generator,
+#: One turn of a sampler's proposal mix (as in performance-notes.md §4: 40/20/20/20).
+CYCLE = ("shape", "albedo", "pose", "shape", "light", "shape", "albedo", "pose", "shape", "light")
+
+
+_TURN = 20  # steps of one chain before the next chain's turn
+
+
+class _Chain:
+    """One renderer stepping through a cycle of proposal kinds, timed per kind.
+
+    Parameters
+    ----------
+    params : RenderParameter
+        Start.
+    rng : numpy.random.Generator
+        Proposal noise.
+    cycle : tuple of str
+        Proposal kinds in the order they are made, repeated.
+    renderer, naive
+        The path: a :class:`Renderer` (cached stages) or a :class:`NaiveStep`.
+
+    Notes
+    -----
+    Every ``ACCEPT_EVERY[kind]``-th proposal of a kind is accepted, the others
+    rejected.
+    """
+
+    def __init__(self, params: RenderParameter, rng: np.random.Generator, cycle: tuple,
                  renderer: Renderer | None = None, naive: NaiveStep | None = None):
-        self.kind, self.rng, self.renderer, self.naive = kind, rng, renderer, naive
+        self.rng, self.cycle, self.renderer, self.naive = rng, cycle, renderer, naive
         self.i = 0
-        self.times: list[float] = []
+        self.counts = dict.fromkeys(KINDS, 0)
+        self.times: dict[str, list[float]] = {kind: [] for kind in KINDS}
         if renderer is not None:
             self.log_lik = renderer.compose(_log_lik)
             self.state = renderer.init_state(params)
         self.params = params
 
     def step(self, target, inv) -> None:
-        """One proposal, render, log-likelihood and accept (even steps) or reject (odd)."""
-        proposed = _proposal(self.params, self.kind, self.i, self.rng)
-        accept = self.i % 2 == 0
+        """The next proposal of the cycle, its log-likelihood, and accept or reject."""
+        kind = self.cycle[self.i % len(self.cycle)]
+        n = self.counts[kind]
+        proposed = _proposal(self.params, kind, n, self.rng)
+        accept = n % ACCEPT_EVERY[kind] == 0
         t0 = time.perf_counter()
         if self.naive is not None:
             value = self.naive(proposed, target, inv)
         else:
-            cand = self.renderer.update(self.state, proposed, KINDS[self.kind])
+            cand = self.renderer.update(self.state, proposed, KINDS[kind])
             value = float(self.log_lik(cand, target, inv))
             if accept:
                 self.state = self.renderer.accept(cand)
             else:
                 self.renderer.reject()
-        self.times.append(time.perf_counter() - t0)
+        self.times[kind].append(time.perf_counter() - t0)
         if not np.isfinite(value):
-            raise FloatingPointError(f"{self.kind}: log-likelihood is {value}")
+            raise FloatingPointError(f"{kind}: log-likelihood is {value}")
         if accept:
             self.params = proposed
+        self.counts[kind] += 1
         self.i += 1
 
-    def median_ms(self, skip: int) -> float:
-        return 1e3 * float(np.median(self.times[skip:]))
+    def ms(self, kind: str, skip: int, stat=np.median) -> float:
+        """``stat`` (median or mean) of the step times of ``kind`` after ``skip``, in ms."""
+        return 1e3 * float(stat(self.times[kind][skip:]))
+
+
+def _spread(total: int, parts: int) -> list[int]:
+    """``total`` split into ``parts`` near-equal non-negative integers."""
+    return [int(x) for x in np.diff(np.linspace(0, total, parts + 1).round())]
 
 
 def _time_size(model, size: int, steps: int, warmup: int, naive_steps: int, threads: int,
                seed: int, log) -> tuple[list[BenchRow], str]:
-    """All chains of one image size, stepped round-robin so that load hits them alike."""
+    """All chains of one image size, in turns so that load hits them alike."""
     params = face_scene(model, size)
     rng = np.random.default_rng([seed, size])
-    # geometry chains get renderers of their own: accepting a shape moves the scene
-    spec = {"geometry": Renderer(model, threads=threads), "other": Renderer(model, threads=threads)}
-    plain = {"geometry": Renderer(model, specular=False, threads=threads),
-             "other": Renderer(model, specular=False, threads=threads)}
-    target = _target(spec["other"], params, rng)
-    coverage = float(spec["other"].render(params).mask.mean())
-    naive = NaiveStep(model, spec["other"].effects(params), jax.jit(_log_lik), threads=threads)
+
+    def renderer(specular: bool) -> Renderer:
+        return Renderer(model, specular=specular, threads=threads)
+
+    # pose, albedo and light chains share a renderer (they leave the vertices alone);
+    # shape chains and the mixed chain move the scene and get their own
+    shared = {True: renderer(True), False: renderer(False)}
+    target = _target(shared[True], params, rng)
+    coverage = float(shared[True].render(params).mask.mean())
+    naive = NaiveStep(model, shared[True].effects(params), jax.jit(_log_lik), threads=threads)
     chains = {}
     for k, kind in enumerate(KINDS):
-        which = "geometry" if KINDS[kind] & Block.GEOMETRY else "other"
-        for variant, renderers in (("ours", spec), ("plain", plain)):
-            chains[kind, variant] = _Chain(kind, params, np.random.default_rng([seed, size, k]),
-                                           renderer=renderers[which])
-        chains[kind, "naive"] = _Chain(kind, params, np.random.default_rng([seed, size, k]),
+        for spec in (True, False):
+            r = renderer(spec) if kind == "shape" else shared[spec]
+            chains[kind, spec] = _Chain(params, np.random.default_rng([seed, size, k]), (kind,),
+                                        renderer=r)
+        chains[kind, "naive"] = _Chain(params, np.random.default_rng([seed, size, k]), (kind,),
                                        naive=naive)
+    mixed = _Chain(params, np.random.default_rng([seed, size, len(KINDS)]), CYCLE,
+                   renderer=renderer(True))
     inv = jnp.float32(0.5 / _SIGMA**2)
-    log(f"{size}x{size}: {len(chains)} chains, {warmup} warm-up + {steps} steps each")
-    for chain in chains.values():  # compile everything first
-        for _ in range(warmup if chain.naive is None else 1):
-            chain.step(target, inv)
-    rounds = -(-steps // _CHUNK)
-    naive_per_round = -(-naive_steps // rounds)
-    for _ in range(rounds):
-        for (kind, variant), chain in chains.items():
-            todo = _CHUNK if variant != "naive" else naive_per_round
-            for _ in range(todo):
+    turns = -(-(steps + warmup) // _TURN)
+    per_cycle = min(CYCLE.count(k) for k in KINDS)
+    mixed_warm = -(-warmup // per_cycle)
+    mixed_cycles = _spread(-(-steps // per_cycle) + mixed_warm, turns)
+    naive_turns = _spread(naive_steps + 1, turns)  # + 1: the first naive step compiles
+    log(f"{size}x{size}: {len(chains)} one-kind chains in {turns} turns of {_TURN} steps, "
+        f"and a mixed chain of {sum(mixed_cycles)} cycles")
+    for t in range(turns):
+        for key, chain in chains.items():
+            for _ in range(naive_turns[t] if key[1] == "naive" else _TURN):
                 chain.step(target, inv)
-    rows = [BenchRow(size, kind, chains[kind, "ours"].median_ms(warmup),
-                     chains[kind, "plain"].median_ms(warmup),
-                     chains[kind, "naive"].median_ms(1), coverage) for kind in KINDS]
-    method = "refit" if spec["geometry"].refit_supported else "rebuild"
-    return rows, method
+        for _ in range(mixed_cycles[t] * len(CYCLE)):
+            mixed.step(target, inv)
+    mixed_skip = {k: mixed_warm * CYCLE.count(k) for k in KINDS}
+    rows = [BenchRow(size, kind, chains[kind, True].ms(kind, warmup),
+                     chains[kind, False].ms(kind, warmup),
+                     chains[kind, "naive"].ms(kind, 1), coverage,
+                     mixed.ms(kind, mixed_skip[kind]), mixed.ms(kind, mixed_skip[kind], np.mean),
+                     chains[kind, "naive"].ms(kind, 1, np.mean))
+            for kind in KINDS]
+    return rows, "refit" if mixed.renderer.refit_supported else "rebuild"
 
 
 def _embree_reference(model, size: int = 250, repeats: int = 15) -> tuple[float, float]:
@@ -254,12 +314,14 @@ def run_render_bench(sizes: Sequence[int] = (128, 250, 512), steps: int = 40, *,
     sizes : sequence of int
         Square image sizes in pixels.
     steps : int
-        Timed steps per kind and size (median reported; rounded up to whole turns of
-        five), after ``warmup`` steps.
+        Timed steps of each kind and size, at least (median reported; whole
+        cycles of :data:`CYCLE` are run, so shape steps are twice as many),
+        after at least ``warmup`` steps of each kind.
     threads : int, optional
         Ray-casting threads (both paths); default :func:`default_threads`.
     naive_steps : int, optional
-        Timed naive steps (default ``min(steps, 10)``: the naive path is slow).
+        Timed naive steps of each kind, at least (default ``min(steps, 10)``:
+        the naive path is slow).
     seed : int
         Seed of the synthetic model, the target and the proposals.
     grid : int
@@ -285,10 +347,11 @@ def run_render_bench(sizes: Sequence[int] = (128, 250, 512), steps: int = 40, *,
         f"built in {build_s:.2f} s")
     embree_ms, embree_bare_ms = _embree_reference(model)
     rows, method = [], "?"
-    for size in sizes:
-        size_rows, method = _time_size(model, int(size), steps, warmup, naive_steps, threads,
-                                       seed, log)
-        rows += size_rows
+    with threadpool_limits(limits=1, user_api="blas"):  # as in a fit (mcmcfit.fit)
+        for size in sizes:
+            size_rows, method = _time_size(model, int(size), steps, warmup, naive_steps,
+                                           threads, seed, log)
+            rows += size_rows
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return BenchResult(rows, int(cores or 1), threads, method, steps, build_s, model.n_vertices,
                        model.n_triangles, embree_ms, embree_bare_ms, load_before,
@@ -300,7 +363,14 @@ MIX = {"shape": 0.4, "pose": 0.2, "albedo": 0.2, "light": 0.2}
 
 
 def format_table(result: BenchResult) -> str:
-    """The benchmark table as text (ms per step, medians)."""
+    """The benchmark table as text.
+
+    "ours", "no-spec" and "naive" are medians of one-kind chains; "mixed" and
+    "mixed mean" the median and mean of the kind's steps in the mixed chain (the
+    mean also counts the steps that first build the per-pixel caches of a newly
+    accepted geometry). The steps/s lines are the mixed chain's throughput and
+    the naive path's, weighted by :data:`MIX`.
+    """
     lines = [
         f"cores: {result.cores}  ray-cast threads: {result.threads}  "
         f"embree update: {result.update_method}  steps: {result.steps} (median)  "
@@ -313,17 +383,54 @@ def format_table(result: BenchResult) -> str:
         f"load average (1 min) before {result.load_before[0]:.2f}, "
         f"after {result.load_after[0]:.2f}",
         f"{'size':>7s} {'kind':>7s} {'ours ms':>8s} {'no-spec ms':>10s} {'spec +ms':>8s} "
-        f"{'naive ms':>9s} {'naive/ours':>10s} {'face px':>7s}",
+        f"{'naive ms':>9s} {'naive/ours':>10s} {'face px':>7s} {'mixed ms':>8s} "
+        f"{'mixed mean':>10s}",
     ]
     for r in result.rows:
         lines.append(f"{r.size:>3d}x{r.size:<3d} {r.kind:>7s} {r.ours_ms:8.2f} "
                      f"{r.ours_no_specular_ms:10.2f} {r.ours_ms - r.ours_no_specular_ms:8.2f} "
-                     f"{r.naive_ms:9.1f} {r.speedup:10.1f} {r.coverage:7.1%}")
+                     f"{r.naive_ms:9.1f} {r.speedup:10.1f} {r.coverage:7.1%} "
+                     f"{r.mixed_ms:8.2f} {r.mixed_mean_ms:10.2f}")
     for size in dict.fromkeys(r.size for r in result.rows):
         ms = {r.kind: r for r in result.rows if r.size == size}
         if set(MIX) <= set(ms):
-            ours = sum(w * ms[k].ours_ms for k, w in MIX.items())
-            naive = sum(w * ms[k].naive_ms for k, w in MIX.items())
+            mixed = sum(w * ms[k].mixed_mean_ms for k, w in MIX.items())
+            naive = sum(w * ms[k].naive_mean_ms for k, w in MIX.items())
             lines.append(f"{size}x{size} mixed 40/20/20/20 (shape/pose/albedo/light): "
-                         f"{1e3 / ours:.0f} steps/s, naive {1e3 / naive:.1f} steps/s")
+                         f"{1e3 / mixed:.0f} steps/s, naive {1e3 / naive:.1f} steps/s "
+                         f"({naive / mixed:.0f}x)")
+    lines += _against_notes(result)
     return "\n".join(lines)
+
+
+#: performance-notes.md §4, ms per step with the 2-thread ray cast, on a machine whose
+#: bare 1-thread Embree cast of its face at 250x250 took :data:`NOTES_EMBREE_MS`.
+NOTES_STEP_MS = {
+    128: {"shape": 6.4, "pose": 2.6, "albedo": 1.1, "light": 0.7},
+    250: {"shape": 10.2, "pose": 6.5, "albedo": 1.7, "light": 1.1},
+    512: {"shape": 23.6, "pose": 25.3, "albedo": 3.8, "light": 3.1},
+}
+NOTES_EMBREE_MS = 6.6
+
+
+def _against_notes(result: BenchResult) -> list[str]:
+    """Lines comparing the one-kind medians with the notes' figures, scaled to this machine.
+
+    The scale is the ratio of the bare Embree casts (this machine / the notes'):
+    a first-order correction for a slower or faster CPU, exact only for the
+    ray-cast part of a step.
+    """
+    rows = [r for r in result.rows if r.size in NOTES_STEP_MS]
+    if not rows or result.embree_bare_ms <= 0:
+        return []
+    f = result.embree_bare_ms / NOTES_EMBREE_MS
+    out = [f"against performance-notes.md §4 (lower bounds measured there), scaled by this "
+           f"machine's bare Embree cast: {result.embree_bare_ms:.1f} / {NOTES_EMBREE_MS} = "
+           f"{f:.2f}",
+           f"{'size':>7s} {'kind':>7s} {'notes ms':>8s} {'x scale':>8s} {'ours ms':>8s} "
+           f"{'ours/scaled':>11s}"]
+    for r in rows:
+        ref = NOTES_STEP_MS[r.size][r.kind]
+        out.append(f"{r.size:>3d}x{r.size:<3d} {r.kind:>7s} {ref:8.1f} {ref * f:8.2f} "
+                   f"{r.ours_ms:8.2f} {r.ours_ms / (ref * f):11.2f}")
+    return out

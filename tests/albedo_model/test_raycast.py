@@ -392,3 +392,57 @@ def test_raycast_is_the_only_embreex_importer():
             if any(n.split(".")[0] == "embreex" for n in names):
                 importers.add(path.relative_to(root).as_posix())
     assert importers == {"albedo_model/raycast.py"}
+
+
+@pytest.mark.parametrize("pose_name", POSES)
+@pytest.mark.parametrize("mesh_name", MESHES)
+def test_pixel_window_holds_every_hit_and_windowed_cast_is_identical(mesh_name, pose_name):
+    v, f = MESHES[mesh_name]()
+    pose, size, pp, ortho = POSES[pose_name]
+    camera = scene(size, pp, ortho)
+    caster = raycast.RayCaster(v, f)
+    np.testing.assert_allclose(caster.bounds, [v.min(0), v.max(0)], rtol=1e-6)
+    o, d = cam.camera_rays(camera, size, pose, View())
+    shape = (size.height, size.width)
+    full = caster.cast(o, d, tfar=camera.far - camera.near, image_shape=shape)
+    window = cam.pixel_window(caster.bounds, camera, size, pose, View())
+    assert window is not None
+    y0, y1, x0, x1 = window
+    ys, xs = np.nonzero(full.mask.reshape(shape))
+    assert ys.min() >= y0 and ys.max() < y1 and xs.min() >= x0 and xs.max() < x1
+    # a window strictly inside the image on at least one side, so that the
+    # windowed path is taken for some of these cases
+    windowed = caster.cast(o, d, tfar=camera.far - camera.near, image_shape=shape,
+                           window=window)
+    np.testing.assert_array_equal(windowed.prim_id, full.prim_id)
+    np.testing.assert_array_equal(windowed.bary, full.bary)
+    np.testing.assert_array_equal(windowed.t, full.t)
+
+
+def test_pixel_window_small_far_face_and_degenerate_cases():
+    v, f = bumpy_sphere(3)
+    size = ImageSize(200, 160)
+    camera = scene(size)
+    caster = raycast.RayCaster(v, f)
+    # a small face off-centre: a small window, and cutting columns too
+    pose = Pose(translation=(-300.0, 150.0, -4000.0))
+    o, d = cam.camera_rays(camera, size, pose, View())
+    y0, y1, x0, x1 = cam.pixel_window(caster.bounds, camera, size, pose, View())
+    assert (y1 - y0) * (x1 - x0) < 0.1 * size.width * size.height
+    full = caster.cast(o, d, image_shape=(160, 200))
+    cut = caster.cast(o, d, image_shape=(160, 200), window=(y0, y1, x0, x1))
+    assert full.mask.sum() > 50
+    np.testing.assert_array_equal(cut.prim_id, full.prim_id)
+    # entirely outside the image: an empty window and no hits
+    away = Pose(translation=(5000.0, 0.0, -1000.0))
+    win = cam.pixel_window(caster.bounds, camera, size, away, View())
+    assert win[0] == win[1] or win[2] == win[3]
+    o2, d2 = cam.camera_rays(camera, size, away, View())
+    assert not caster.cast(o2, d2, image_shape=(160, 200), window=win).mask.any()
+    # the eye inside the box: projection bounds nothing, cast everything
+    inside = Pose(translation=(0.0, 0.0, -50.0))
+    assert cam.pixel_window(caster.bounds, camera, size, inside, View()) is None
+    with pytest.raises(InputError, match="window"):
+        caster.cast(o, d, image_shape=(160, 200), window=(0, 161, 0, 10))
+    with pytest.raises(InputError, match="image_shape"):
+        caster.cast(o, d, window=(0, 10, 0, 10))

@@ -29,7 +29,24 @@ def test_bench_render_smoke(capsys):
         assert extra == pytest.approx(ours - no_spec, abs=0.011)
         assert ratio == pytest.approx(naive / ours, rel=0.05, abs=0.06)  # printed rounded
         assert 0.3 < float(r[7].rstrip("%")) / 100 < 0.9  # face coverage
-    assert re.search(r"24x24 mixed .*: \d+ steps/s, naive \d+\.\d steps/s", out)
+        mixed, mixed_mean = float(r[8]), float(r[9])  # the kind's steps in the mixed chain
+        assert np.isfinite(mixed) and np.isfinite(mixed_mean) and mixed > 0 and mixed_mean > 0
+    assert re.search(r"24x24 mixed .*: \d+ steps/s, naive \d+\.\d steps/s \(\d+x\)", out)
+    # no reference figures at 24x24: the comparison with performance-notes.md is left out
+    assert "against performance-notes" not in out
+
+
+def test_against_notes_scales_the_reference_by_the_embree_yardstick():
+    from mcmcfit.bench.render_bench import BenchResult, BenchRow, format_table
+
+    rows = [BenchRow(250, "shape", 20.0, 19.0, 200.0, 0.6, 21.0, 22.0, 210.0),
+            BenchRow(250, "light", 1.0, 0.8, 200.0, 0.6, 2.0, 2.5, 210.0)]
+    result = BenchResult(rows, 2, 2, "refit", 40, 0.5, 53824, 106722, 14.0, 13.2,
+                         (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    out = format_table(result)
+    assert "13.2 / 6.6 = 2.00" in out
+    line = next(x for x in out.splitlines() if re.match(r"250x250 +shape +10\.2 ", x))
+    assert line.split()[2:] == ["10.2", "20.40", "20.00", "0.98"]  # 20 / (10.2 * 2)
 
 
 def test_bench_render_rejects_bad_options(capsys):
