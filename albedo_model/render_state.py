@@ -171,6 +171,13 @@ class RenderState(NamedTuple):
     updates : (int, int)
         Incremental block updates behind the shape and the albedo instances
         since they were last computed in full (see :mod:`albedo_model.instance_updates`).
+    pixels : (C,) int32 host array, or None
+        The pixel set the per-pixel caches hold, as row-major pixel indices
+        (sorted): every pixel whose ray hit, plus misses up to a bucketed size
+        (so that compiled programs see few distinct shapes). None: every pixel.
+        The caches' ``(P,)`` arrays above are then ``(C,)``; :meth:`full`
+        expands one to the image, and the shading stages return whole images.
+    pixels_dev : device copy of ``pixels`` (or None)
     """
 
     params: RenderParameter
@@ -190,6 +197,35 @@ class RenderState(NamedTuple):
     effects: Effects
     shading: np.ndarray
     updates: tuple[int, int] = (0, 0)
+    pixels: np.ndarray | None = None
+    pixels_dev: object = None
+
+    def positions(self, indices: np.ndarray) -> np.ndarray:
+        """Where pixels (row-major indices, all in the pixel set) sit in the caches' arrays."""
+        idx = np.asarray(indices)
+        return idx if self.pixels is None else np.searchsorted(self.pixels, idx)
+
+    def full(self, values, fill=0.0) -> np.ndarray:
+        """Per-pixel ``values`` of the state's pixel set as a whole image (host, row-major).
+
+        Parameters
+        ----------
+        values : (C,) or (C, k) array (host or device)
+            One value per entry of :attr:`pixels` (e.g. a channel of a pixel cache).
+        fill : scalar
+            Value of the pixels outside the set (all misses).
+
+        Returns
+        -------
+        (H W,) or (H W, k) numpy array; ``values`` itself when the set is every pixel.
+        """
+        v = np.asarray(values)
+        if self.pixels is None:
+            return v
+        w, h = self.params.image_size
+        out = np.full((int(w) * int(h),) + v.shape[1:], fill, v.dtype)
+        out[self.pixels] = v
+        return out
 
     @property
     def albedo(self) -> np.ndarray:
@@ -233,21 +269,46 @@ normals_stage = jax.jit(vertex_normal_columns)
 normals_stage.__doc__ = "Jitted :func:`albedo_model.normals_jax.vertex_normal_columns`."
 
 
-hits_stage = jax.jit(pixel_hits)
-hits_stage.__doc__ = "Jitted :func:`albedo_model.interpolation.pixel_hits`."
+def _at_pixels(values, pixels):
+    """Per-pixel ``values`` (whole image) at the pixel set, or all of them when None."""
+    return values if pixels is None else values[pixels]
 
 
-def _geometry(effects: Effects, hits, normals, rotation, view) -> PixelGeometry:
+@jax.jit
+def hits_stage(triangles, prim_id, bary, pixels):
+    """:func:`albedo_model.interpolation.pixel_hits` of the whole-image ray-cast buffers
+    ``prim_id`` (H W,) and ``bary`` (H W, 2) at the pixel set ``pixels`` (or all)."""
+    return pixel_hits(triangles, _at_pixels(prim_id, pixels), _at_pixels(bary, pixels))
+
+
+def _geometry(effects: Effects, hits, normals, rotation, view, pixels) -> PixelGeometry:
     # view directions depend on the camera only: the renderer caches them per camera
+    # for the whole image, and they are picked for the pixel set here
+    if view is not None and pixels is not None:
+        view = tuple(v[pixels] for v in view)
     no_view = effects._replace(specular=False, directional=False)
     return interpolate_geometry(no_view, hits, normals, None, rotation)._replace(view=view)
 
 
 @functools.cache
 def geometry_stage(effects: Effects):
-    """Jitted ``f(hits, normals, rotation, view) -> PixelGeometry`` (``view`` three (P,)
-    arrays when :func:`~albedo_model.interpolation.needs_view`, else None)."""
+    """Jitted ``f(hits, normals, rotation, view, pixels) -> PixelGeometry`` (``view``
+    three (H W,) arrays when :func:`~albedo_model.interpolation.needs_view`, else
+    None; ``pixels`` the state's device pixel set or None)."""
     return jax.jit(functools.partial(_geometry, effects))
+
+
+def _expand(out: Shaded, pixels, n_pixels: int, background) -> Shaded:
+    """Shader output of a pixel set scattered into whole-image arrays (background elsewhere)."""
+    if pixels is None:
+        return out
+
+    def put(values, fill):
+        full = jnp.full(n_pixels, fill, values.dtype)
+        return full.at[pixels].set(values, indices_are_sorted=True, unique_indices=True)
+
+    rgb = tuple(put(out.rgb[c], background[c]) for c in range(3))
+    return Shaded(rgb=rgb, mask=put(out.mask, False))
 
 
 @functools.cache
@@ -290,47 +351,67 @@ def light_stage(effects: Effects):
 
 
 @functools.cache
-def combine_stage(effects: Effects):
-    """Jitted ``f(light, albedo, mask, packed) -> Shaded``."""
-    def combine(light, albedo, mask, packed) -> Shaded:
-        return combine_pixels(effects, light, albedo, mask, unpack_shading_params(packed))
+def combine_stage(effects: Effects, n_pixels: int):
+    """Jitted ``f(light, albedo, mask, packed, pixels) -> Shaded`` of the whole image
+    (``n_pixels`` = H W; ``pixels`` the state's device pixel set or None)."""
+    def combine(light, albedo, mask, packed, pixels) -> Shaded:
+        params = unpack_shading_params(packed)
+        out = combine_pixels(effects, light, albedo, mask, params)
+        return _expand(out, pixels, n_pixels, params.background)
     return jax.jit(combine)
 
 
-@functools.cache
-def fused_stage(effects: Effects, fn):
-    """Jitted ``f(light, albedo, mask, packed, *args) -> fn(rgb, mask, *args)``.
+def _apply(fn, out: Shaded, pixels, n_pixels: int, params, pixel_set: bool, args):
+    """``fn`` of shaded pixels: on the pixel set, or on the whole image."""
+    if pixel_set:
+        return fn(out.rgb, out.mask, pixels, *args)
+    out = _expand(out, pixels, n_pixels, params.background)
+    return fn(out.rgb, out.mask, *args)
 
-    Cached per (effect set, ``fn``): every renderer composing the same function
-    shares one compiled program per argument shape (no recompile per fit).
+
+@functools.cache
+def fused_stage(effects: Effects, fn, n_pixels: int, pixel_set: bool = False):
+    """Jitted ``f(light, albedo, mask, packed, pixels, *args) -> fn(...)``.
+
+    ``fn(rgb, mask, *args)`` of the whole image (``n_pixels`` = H W), or with
+    ``pixel_set`` ``fn(rgb, mask, pixels, *args)`` of the state's pixel set.
+    Cached per (effect set, ``fn``, image size, ``pixel_set``): every renderer
+    composing the same function shares one compiled program per argument shape
+    (no recompile per fit).
     """
-    def fused(light, albedo, mask, packed, *args):
-        out = combine_pixels(effects, light, albedo, mask, unpack_shading_params(packed))
-        return fn(out.rgb, out.mask, *args)
+    def fused(light, albedo, mask, packed, pixels, *args):
+        params = unpack_shading_params(packed)
+        out = combine_pixels(effects, light, albedo, mask, params)
+        return _apply(fn, out, pixels, n_pixels, params, pixel_set, args)
     return jax.jit(fused)
 
 
 @functools.cache
-def image_stage(effects: Effects, fn, fused: frozenset):
+def image_stage(effects: Effects, fn, fused: frozenset, n_pixels: int, pixel_set: bool = False):
     """Jitted ``f(inputs, *args) -> fn(rgb, mask, *args)`` computing the pixel attributes
     named in ``fused`` (of "hits", "geometry", "albedo", "light") on the way.
 
-    ``inputs`` is a dict: always ``packed`` (shading parameters) and ``prim_id``;
-    ``triangles``, ``bary`` with "hits" fused, else ``hits`` when geometry or albedo
-    are; ``normals``, ``rotation``, ``view`` with "geometry", else ``geometry`` when
-    the light is fused; ``light_packed``, ``shadow`` with "light", else ``light``;
-    ``albedo_dev`` with "albedo", else ``albedo``. One loop over the pixels reads
-    the per-vertex arrays and reduces into ``fn``'s result. Cached per (effect set,
-    ``fn``, ``fused``).
+    ``inputs`` is a dict: always ``packed`` (shading parameters), ``prim_id`` (of
+    the whole image) and ``pixels`` (the pixel set, or None); ``triangles``, ``bary`` with "hits" fused,
+    else ``hits`` when geometry or albedo are; ``normals``, ``rotation``, ``view``
+    with "geometry", else ``geometry`` when the light is fused; ``light_packed``,
+    ``shadow`` with "light", else ``light``; ``albedo_dev`` with "albedo", else
+    ``albedo``. One loop over the pixel set reads the per-vertex arrays and
+    reduces into ``fn``'s result: ``fn(rgb, mask, pixels, *args)`` of the pixel
+    set with ``pixel_set``, else ``fn(rgb, mask, *args)`` of the whole image
+    (``n_pixels`` = H W; the shaded pixels are scattered into it). Cached per
+    (effect set, ``fn``, ``fused``, image size, ``pixel_set``).
     """
     def image(inputs, *args):
+        pixels = inputs["pixels"]
+        prim_id = _at_pixels(inputs["prim_id"], pixels)
         if "hits" in fused:
-            hits = pixel_hits(inputs["triangles"], inputs["prim_id"], inputs["bary"])
+            hits = pixel_hits(inputs["triangles"], prim_id, _at_pixels(inputs["bary"], pixels))
         else:
             hits = inputs.get("hits")
         if "geometry" in fused:
             geometry = _geometry(effects, hits, inputs["normals"], inputs["rotation"],
-                                 inputs["view"])
+                                 inputs["view"], inputs["pixels"])
         else:
             geometry = inputs.get("geometry")
         if "light" in fused:
@@ -343,9 +424,9 @@ def image_stage(effects: Effects, fn, fused: frozenset):
                                         *_split_albedo(effects, inputs["albedo_dev"]))
         else:
             albedo = inputs["albedo"]
-        out = combine_pixels(effects, light, albedo, inputs["prim_id"] >= 0,
-                             unpack_shading_params(inputs["packed"]))
-        return fn(out.rgb, out.mask, *args)
+        params = unpack_shading_params(inputs["packed"])
+        out = combine_pixels(effects, light, albedo, prim_id >= 0, params)
+        return _apply(fn, out, pixels, n_pixels, params, pixel_set, args)
     return jax.jit(image)
 
 

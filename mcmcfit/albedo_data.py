@@ -147,9 +147,10 @@ class RenderAlbedoData:
         if face.size == 0:
             return None
         light = rs.pixel_light
+        at = rs.positions(face)  # the light holds the state's pixel set
 
         def channels(planes):
-            return np.stack([np.asarray(c)[face] for c in planes], axis=1).astype(np.float32)
+            return np.stack([np.asarray(c)[at] for c in planes], axis=1).astype(np.float32)
 
         dl = channels(light.diffuse)
         mean = dl * md

@@ -53,7 +53,7 @@ class FaceTarget:
         self.current: RenderState | None = None
         self._fused = None
         if image_likelihood is not None and hasattr(renderer, "compose"):
-            self._fused = renderer.compose(image_likelihood.device_fn)
+            self._fused = renderer.compose(image_likelihood.pixel_set_fn, pixel_set=True)
 
     def log_prior(self, params: RenderParameter) -> float:
         return self.prior(params)

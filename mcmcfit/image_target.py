@@ -143,6 +143,19 @@ _DEVICE_FUNCTIONS = {"independent": independent_terms, "collective": collective_
                      "trimmed": trimmed_terms}
 
 
+def _on_pixel_set(terms):
+    """``terms`` with the pixel set as third argument, as ``Renderer.compose(pixel_set=True)``
+    calls it."""
+    def on_set(rgb, mask, pixels, *args):
+        return terms(rgb, mask, *args, pixels=pixels)
+    on_set.__name__ = f"{terms.__name__}_on_pixel_set"
+    return on_set
+
+
+# one function object per kind, so that compiled programs are shared across fits
+_PIXEL_SET_FUNCTIONS = {k: _on_pixel_set(f) for k, f in _DEVICE_FUNCTIONS.items()}
+
+
 @functools.cache
 def _jitted(kind: str):
     return jax.jit(_DEVICE_FUNCTIONS[kind])
@@ -205,6 +218,13 @@ class ImageLikelihood:
         result into the log likelihood.
         """
         return _DEVICE_FUNCTIONS[self.kind]
+
+    @property
+    def pixel_set_fn(self):
+        """:attr:`device_fn` as ``fn(rgb, mask, pixels, *device_args())`` on a renderer's
+        pixel set (:meth:`albedo_model.render.Renderer.compose` with ``pixel_set=True``:
+        the per-pixel work follows the face's size, not the image's)."""
+        return _PIXEL_SET_FUNCTIONS[self.kind]
 
     def device_args(self) -> tuple:
         """The arguments after ``(rgb, mask)`` of :attr:`device_fn`."""

@@ -83,32 +83,42 @@ class ImageArrays(NamedTuple):
     bg: jax.Array
 
 
-def _sq_dist(rgb, target: ImageArrays):
-    h, w = target.bg.shape
-    return sum((c.reshape(h, w) - t) ** 2 for c, t in zip(rgb, target.rgb))
+def _at(image, pixels):
+    """An (H, W) target array at the pixels (row-major indices), or all of it when None."""
+    flat = image.reshape(-1)
+    return flat if pixels is None else flat[pixels]
 
 
-def independent_terms(rgb, mask, target: ImageArrays, sigma):
+def _sq_dist(rgb, target: ImageArrays, pixels):
+    return sum((c - _at(t, pixels)) ** 2 for c, t in zip(rgb, target.rgb))
+
+
+def independent_terms(rgb, mask, target: ImageArrays, sigma, pixels=None):
     """Row partial sums of the independent-pixel likelihood (without the per-pixel constant).
 
     Parameters
     ----------
-    rgb : three (P,) float32 arrays, linear model colours (P = H W, row-major)
+    rgb : three (P,) float32 arrays, linear model colours
     mask : (P,) bool, face pixels of the render
     target : ImageArrays
     sigma : float scalar, per-channel colour noise
+    pixels : (P,) int32, optional
+        Row-major image indices of the P pixels (a renderer's pixel set, P a
+        multiple of W); default: the whole image (P = H W).
 
     Returns
     -------
-    rows : (H,) float32
-        ``sum_w mask (-||I - R||^2 / (2 sigma^2) - bg(I))`` per image row.
-    counts : (H,) int32
-        Face pixels per row.
+    rows : (P / W,) float32
+        ``sum mask (-||I - R||^2 / (2 sigma^2) - bg(I))`` per W consecutive pixels
+        (per image row for the whole image).
+    counts : (P / W,) int32
+        Face pixels among them.
     """
-    h, w = target.bg.shape
-    m = mask.reshape(h, w)
-    val = -_sq_dist(rgb, target) * (0.5 / (sigma * sigma)) - target.bg
-    return jnp.sum(jnp.where(m, val, 0.0), axis=1), jnp.sum(m, axis=1, dtype=jnp.int32)
+    w = target.bg.shape[1]
+    m = mask.reshape(-1, w)
+    val = -_sq_dist(rgb, target, pixels) * (0.5 / (sigma * sigma)) - _at(target.bg, pixels)
+    return (jnp.sum(jnp.where(m, val.reshape(-1, w), 0.0), axis=1),
+            jnp.sum(m, axis=1, dtype=jnp.int32))
 
 
 def finish_independent(rows, counts, sigma: float) -> float:
@@ -124,11 +134,12 @@ def finish_independent(rows, counts, sigma: float) -> float:
     return float(n * pixel_log_normaliser(sigma) + np.sum(np.asarray(rows, np.float64)))
 
 
-def collective_terms(rgb, mask, target: ImageArrays):
-    """Row sums of ``||I - R||^2`` over face pixels, and face-pixel counts per row."""
-    h, w = target.bg.shape
-    m = mask.reshape(h, w)
-    return (jnp.sum(jnp.where(m, _sq_dist(rgb, target), 0.0), axis=1),
+def collective_terms(rgb, mask, target: ImageArrays, pixels=None):
+    """Row sums of ``||I - R||^2`` over face pixels, and face-pixel counts per row
+    (``pixels`` and the rows as in :func:`independent_terms`)."""
+    w = target.bg.shape[1]
+    m = mask.reshape(-1, w)
+    return (jnp.sum(jnp.where(m, _sq_dist(rgb, target, pixels).reshape(-1, w), 0.0), axis=1),
             jnp.sum(m, axis=1, dtype=jnp.int32))
 
 
@@ -155,16 +166,17 @@ def finish_collective(rows, counts, sigma: float, relative_variance: float) -> f
     return -0.5 * LOG_2PI - 0.5 * z * z
 
 
-def trimmed_terms(rgb, mask, target: ImageArrays, sigma):
-    """Per-pixel terms for the trimmed likelihood: ``(values (P,) float32, mask (P,))``.
+def trimmed_terms(rgb, mask, target: ImageArrays, sigma, pixels=None):
+    """Per-pixel terms for the trimmed likelihood: ``(values (P,) float32, mask (P,))``
+    (``pixels`` as in :func:`independent_terms`).
 
     ``values = -||I - R||^2 / (2 sigma^2) - bg(I)`` (without the constant); the
     selection of the best pixels happens on the host (:func:`finish_trimmed`),
     where a linear-time partition beats a device sort (measured at 250²:
     ~1 ms against ~9.5 ms for ``jnp.sort``).
     """
-    val = -_sq_dist(rgb, target) * (0.5 / (sigma * sigma)) - target.bg
-    return val.reshape(-1), mask
+    val = -_sq_dist(rgb, target, pixels) * (0.5 / (sigma * sigma)) - _at(target.bg, pixels)
+    return val, mask
 
 
 def finish_trimmed(values, mask, sigma: float, fraction: float) -> float:

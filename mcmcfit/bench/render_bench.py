@@ -142,6 +142,13 @@ def _log_lik(rgb, mask, target, inv_two_var):
     return -inv_two_var * jnp.sum(jnp.where(mask, sq, 0.0))
 
 
+def _log_lik_on_set(rgb, mask, pixels, target, inv_two_var):
+    """:func:`_log_lik` on a renderer's pixel set (as a fit evaluates it)."""
+    if pixels is not None:
+        target = tuple(t[pixels] for t in target)
+    return _log_lik(rgb, mask, target, inv_two_var)
+
+
 def _target(renderer: Renderer, params: RenderParameter, rng: np.random.Generator):
     """A fixed target: the scene with other albedo and light, plus noise (device arrays)."""
     m = params.momo
@@ -192,7 +199,7 @@ class _Chain:
         self.counts = dict.fromkeys(KINDS, 0)
         self.times: dict[str, list[float]] = {kind: [] for kind in KINDS}
         if renderer is not None:
-            self.log_lik = renderer.compose(_log_lik)
+            self.log_lik = renderer.compose(_log_lik_on_set, pixel_set=True)
             self.state = renderer.init_state(params)
         self.params = params
 

@@ -36,11 +36,11 @@ def vertex_image(state, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     vals = np.asarray(values, np.float32)
     flat = vals.reshape(vals.shape[0], -1)
-    hits = state.pixel_hits
-    mask = np.asarray(hits.mask)
+    hits = state.pixel_hits  # of the state's pixel set: expanded to the image below
+    mask = state.full(hits.mask, False)
     out = np.zeros((mask.shape[0], flat.shape[1]), np.float32)
     for corner, weight in zip(hits.corner, hits.weight):
-        out += np.asarray(weight, np.float32)[:, None] * flat[np.asarray(corner)]
+        out += state.full(weight)[:, None] * flat[state.full(corner, 0)]
     out[~mask] = 0.0
     w, h = state.params.image_size
     shape = (h, w) if vals.ndim == 1 else (h, w, flat.shape[1])

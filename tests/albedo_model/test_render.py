@@ -380,3 +380,41 @@ def test_rays_are_reused_only_for_the_same_camera_and_pose():
     turned = params._replace(pose=params.pose._replace(yaw=0.5))
     np.testing.assert_allclose(renderer.image(renderer.update(state, turned, Block.POSE)).image,
                                Renderer(model).render(turned).image, atol=2e-5)
+
+
+def test_pixel_set_holds_every_hit_and_compose_on_it_matches_the_whole_image():
+    """The caches hold the hit pixels plus a few misses (a multiple of the width); a
+    likelihood on that set equals the one on the whole image, step after step."""
+    import jax.numpy as jnp
+    model = bumpy_model()
+    renderer = Renderer(model, gamma=True)
+    state = renderer.init_state(scene(sh=SHLight.frontal()))
+    w, h = state.params.image_size
+    pixels = state.pixels
+    assert pixels is not None and len(pixels) % w == 0 and len(pixels) < w * h
+    assert np.all(np.diff(pixels) > 0)
+    assert set(np.flatnonzero(state.hits.mask)) <= set(pixels)
+    np.testing.assert_array_equal(state.full(state.pixel_hits.mask, False), state.hits.mask)
+    target = tuple(jnp.full(w * h, 0.3 + 0.1 * c, jnp.float32) for c in range(3))
+
+    def sq_error_on_set(rgb, mask, pixels, target):
+        at = target if pixels is None else tuple(t[pixels] for t in target)
+        return sum(jnp.sum(jnp.where(mask, (rgb[c] - at[c]) ** 2, 0.0)) for c in range(3))
+
+    def reference(out):
+        return sum(((out.image[..., c] - (0.3 + 0.1 * c)) ** 2)[out.mask].sum() for c in range(3))
+
+    fused = renderer.compose(sq_error_on_set, pixel_set=True)
+    assert float(fused(state, target)) == pytest.approx(reference(renderer.image(state)), rel=1e-5)
+    rng = np.random.default_rng(7)
+    for touched, params in moves(state.params, rng):
+        cand = renderer.update(state, params, touched)
+        got = float(fused(cand, target))
+        assert got == pytest.approx(reference(renderer.image(cand)), rel=1e-5), touched
+        renderer.reject()
+    # a face filling the image: the set is every pixel (None), in image order
+    close = state.params._replace(pose=state.params.pose._replace(
+        translation=(0.0, 0.0, 0.35 * state.params.pose.translation[2])))
+    full = renderer.init_state(close)
+    assert full.hits.mask.mean() > 15 / 16 and full.pixels is None
+    assert float(fused(full, target)) == pytest.approx(reference(renderer.image(full)), rel=1e-5)

@@ -137,6 +137,29 @@ def test_row_sums_in_float64_keep_precision_at_250_squared():
         assert abs(got - exact) < 1e-3
 
 
+@pytest.mark.parametrize("kind", ["independent", "collective", "trimmed"])
+def test_pixel_set_terms_equal_whole_image_terms(kind):
+    """On a renderer's pixel set (every face pixel and some misses, whole rows' worth) the
+    likelihood is the whole image's: what pixel_set_fn computes inside a fused program."""
+    rng = np.random.default_rng(5)
+    srgb, render, mask = _random_case(rng, h=12, w=9, face=0.4)
+    h, w = mask.shape
+    tgt = prepare_image_target(srgb)
+    lik = ImageLikelihood(tgt, kind=kind, sigma=SIGMA, trim_fraction=0.8)
+    whole = lik(_shaded(render, mask))
+    hit = mask.ravel()
+    select = hit.copy()
+    extra = (-(-hit.sum() // w) + 1) * w - hit.sum()  # a multiple of the width, some misses
+    select[np.flatnonzero(~hit)[:extra]] = True
+    pixels = np.flatnonzero(select).astype(np.int32)
+    assert len(pixels) % w == 0 and len(pixels) < h * w
+    flat = render.reshape(-1, 3)[pixels]
+    rgb = tuple(jnp.asarray(flat[:, c]) for c in range(3))
+    terms = lik.pixel_set_fn(rgb, jnp.asarray(hit[pixels]), jnp.asarray(pixels),
+                             *lik.device_args())
+    assert lik.finish(*terms) == pytest.approx(whole, rel=1e-6)
+
+
 def test_landmark_log_lik_by_hand_with_hidden_term():
     pred = np.array([[10.0, 10.0], [20.0, 25.0], [0.0, 0.0]])
     obs = np.array([[13.0, 14.0], [20.0, 25.0], [50.0, 50.0]])
