@@ -157,8 +157,7 @@ class RayCaster:
             log.warning("BVH refit unavailable (%s); rebuilding scenes instead", reason)
         self._refit: RefitHandle | None = None
         self._build(v, refit=want_refit and ok)
-        ext = v.max(axis=0) - v.min(axis=0) if len(v) else np.zeros(3, np.float32)
-        self.scale = float(np.linalg.norm(ext)) or 1.0
+        self.scale = float(np.linalg.norm(self._bounds[1] - self._bounds[0])) or 1.0
 
     @property
     def refit_supported(self) -> bool:
