@@ -57,7 +57,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from albedo_model.camera import (
-    _eye_rays, camera_rays, euler_rotation, eye_from_world, pixel_window,
+    camera_rays, euler_rotation, eye_from_world, pixel_scale, pixel_window, principal_point_px,
 )
 from albedo_model.errors import InputError
 from albedo_model.instance_updates import ModelInstances
@@ -515,18 +515,22 @@ class Renderer:
                                state.params, caster, names)
 
     def _world_views(self, p: RenderParameter) -> tuple:
-        """Unit directions from each pixel's surface point towards the eye: three (P,)
-        device arrays, world frame (they depend on the camera, image size and view only)."""
-        key = (p.camera, p.image_size, p.view)
-        if key not in self._views_cache:
-            _, dirs = _eye_rays(p.camera, p.image_size)
-            r, _ = eye_from_world(p.view)
-            # eye = R world + t, so a world direction is R^T applied to the eye direction
-            world = dirs[:, :3].astype(np.float64) @ r
-            view = -world / np.linalg.norm(world, axis=1, keepdims=True)
-            self._views_cache = {key: tuple(jnp.asarray(view[:, c].astype(np.float32))
-                                            for c in range(3))}
-        return self._views_cache[key]
+        """What the shader needs for each pixel's view direction (see ``render_state._views``):
+        the pixel coordinates ``(x, y)`` of the image, two (H W,) device arrays cached
+        per image size, and the camera as (14,) float32 (focal lengths and principal
+        point in pixels, orthographic flag, world-to-eye rotation)."""
+        w, h = int(p.image_size.width), int(p.image_size.height)
+        if self._views_cache.get("size") != (w, h):
+            ys, xs = np.divmod(np.arange(w * h, dtype=np.int64), w)
+            self._views_cache = {"size": (w, h),
+                                 "coords": jax.device_put((xs.astype(np.float32),
+                                                           ys.astype(np.float32)))}
+        fx, fy = pixel_scale(p.camera, p.image_size)
+        cx, cy = principal_point_px(p.camera, p.image_size)
+        r, _ = eye_from_world(p.view)
+        camera = np.concatenate([[fx, fy, cx, cy, float(bool(p.camera.orthographic))],
+                                 r.reshape(-1)]).astype(np.float32)
+        return self._views_cache["coords"], camera
 
     def _shadow(self, state: RenderState) -> np.ndarray:
         p = state.params

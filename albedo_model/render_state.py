@@ -30,7 +30,7 @@ import numpy as np
 
 from albedo_model.interpolation import (
     PixelGeometry, interpolate_albedo, interpolate_geometry, needs_specular_albedo, needs_view,
-    pixel_hits,
+    normalise, pixel_hits,
 )
 from albedo_model.normals_jax import vertex_normal_columns
 from albedo_model.params import RenderParameter
@@ -281,19 +281,37 @@ def hits_stage(triangles, prim_id, bary, pixels):
     return pixel_hits(triangles, _at_pixels(prim_id, pixels), _at_pixels(bary, pixels))
 
 
+def _views(view, pixels):
+    """Unit directions from the pixels' surface points towards the eye, world frame.
+
+    ``view`` is ``((x, y), camera)`` as :meth:`Renderer._world_views` packs it: pixel
+    coordinates of the image and (fx, fy, cx, cy, orthographic, R (3x3) world to
+    eye). Eye rays are ``((x - cx) / fx, -(y - cy) / fy, -1)`` (orthographic:
+    ``(0, 0, -1)``), a world direction is ``R^T`` of an eye direction, and the
+    view direction is the reverse ray. Computed per pixel here rather than cached
+    per camera: the sampler's camera proposals would miss any cache.
+    """
+    (xs, ys), cam = view
+    if pixels is not None:
+        xs, ys = xs[pixels], ys[pixels]
+    perspective = cam[4] < 0.5
+    a = jnp.where(perspective, (xs - cam[2]) / cam[0], 0.0)
+    b = jnp.where(perspective, (cam[3] - ys) / cam[1], 0.0)
+    r = cam[5:].reshape(3, 3)
+    world = [a * r[0, c] + b * r[1, c] - r[2, c] for c in range(3)]
+    return normalise(-world[0], -world[1], -world[2])
+
+
 def _geometry(effects: Effects, hits, normals, rotation, view, pixels) -> PixelGeometry:
-    # view directions depend on the camera only: the renderer caches them per camera
-    # for the whole image, and they are picked for the pixel set here
-    if view is not None and pixels is not None:
-        view = tuple(v[pixels] for v in view)
     no_view = effects._replace(specular=False, directional=False)
-    return interpolate_geometry(no_view, hits, normals, None, rotation)._replace(view=view)
+    geometry = interpolate_geometry(no_view, hits, normals, None, rotation)
+    return geometry._replace(view=None if view is None else _views(view, pixels))
 
 
 @functools.cache
 def geometry_stage(effects: Effects):
-    """Jitted ``f(hits, normals, rotation, view, pixels) -> PixelGeometry`` (``view``
-    three (H W,) arrays when :func:`~albedo_model.interpolation.needs_view`, else
+    """Jitted ``f(hits, normals, rotation, view, pixels) -> PixelGeometry`` (``view`` as
+    :func:`_views` reads it when :func:`~albedo_model.interpolation.needs_view`, else
     None; ``pixels`` the state's device pixel set or None)."""
     return jax.jit(functools.partial(_geometry, effects))
 

@@ -418,3 +418,40 @@ def test_pixel_set_holds_every_hit_and_compose_on_it_matches_the_whole_image():
     full = renderer.init_state(close)
     assert full.hits.mask.mean() > 15 / 16 and full.pixels is None
     assert float(fused(full, target)) == pytest.approx(reference(renderer.image(full)), rel=1e-5)
+
+
+@pytest.mark.parametrize("ortho", [False, True])
+def test_view_directions_of_specular_shading_match_the_camera_rays(ortho):
+    """The renderer derives each pixel's view direction on the device from the camera; the
+    naive shader is given the world-frame camera rays instead: same image (off-centre
+    principal point, a turned camera, Blinn-Phong and AlbedoMM specular on)."""
+    from albedo_model.camera import _eye_rays, euler_rotation, eye_from_world
+    from albedo_model.params import DirectionalLight, View
+    from albedo_model.shading import shading_params
+    from albedo_model.shading_naive import shade_naive
+
+    model = bumpy_model()
+    params = scene(sh=SHLight.frontal(), pp=(0.2, -0.15))._replace(
+        view=View((5.0, -3.0, 2.0), 0.05, -0.08, 0.04),
+        directional_light=DirectionalLight((0.1,) * 3, (0.6,) * 3, (0.5, 0.4, 1.0), (0.3,) * 3,
+                                           15.0),
+        specular_exponent=12.0,
+    )
+    if ortho:
+        params = params._replace(camera=params.camera._replace(orthographic=True, near=600.0))
+    renderer = Renderer(model, directional_specular_map=False)
+    out = renderer.render(params)
+    st = out.state
+    eff = renderer.effects(params)
+    assert eff.specular and eff.directional and st.hits.mask.sum() > 100
+    _, eye_dirs = _eye_rays(params.camera, params.image_size)
+    r_view, _ = eye_from_world(params.view)
+    ray_dirs = (eye_dirs[:, :3].astype(np.float64) @ r_view).astype(np.float32)
+    verts = st.shape.reshape(-1, 3)
+    rotation = euler_rotation(params.pose.roll, params.pose.yaw, params.pose.pitch)
+    ref = shade_naive(eff, model.triangles.astype(np.int32),
+                      vertex_normals(verts, model.triangles).astype(np.float32),
+                      st.diffuse.reshape(-1, 3), st.specular.reshape(-1, 3), st.hits.prim_id,
+                      st.hits.bary, ray_dirs, shading_params(params, rotation))
+    want = np.stack([np.asarray(c) for c in ref.rgb], -1).reshape(out.image.shape)
+    np.testing.assert_allclose(out.image[out.mask], want[out.mask], atol=2e-5)
