@@ -239,20 +239,13 @@ def pixel_window(bounds: np.ndarray, camera: Camera, image_size: ImageSize, pose
     """
     b = np.asarray(bounds, np.float64).reshape(2, 3)
     corners = np.where(_CORNERS, b[1], b[0])
-    r, t, s = eye_from_model(pose, view)
-    eye = (s * corners) @ r.T + t
-    if camera.orthographic:
-        denom = float(camera.near)
-    else:
-        denom = -eye[:, 2]
-        if denom.min() <= 1e-9 * max(1.0, float(camera.near)):
-            return None
-    fx, fy = pixel_scale(camera, image_size)
-    cx, cy = principal_point_px(camera, image_size)
-    u = cx + fx * eye[:, 0] / denom
-    v = cy - fy * eye[:, 1] / denom
-    if not (np.isfinite(u).all() and np.isfinite(v).all()):
+    eye = to_eye(corners, pose, view)
+    if not camera.orthographic and np.any(eye[:, 2] >= -1e-9 * max(1.0, float(camera.near))):
         return None
+    px, _ = project_eye(eye, camera, image_size)
+    if not np.all(np.isfinite(px)):
+        return None
+    u, v = px[:, 0], px[:, 1]
     w, h = int(image_size.width), int(image_size.height)
     x0 = min(max(math.floor(u.min()) - margin, 0), w)
     x1 = min(max(math.floor(u.max()) + 1 + margin, x0), w)

@@ -85,7 +85,7 @@ STAGE_DEPS = {
 }
 
 
-_PIXEL_BUCKETS = 16  # pixel-set capacities are multiples of 1/16 of the image
+_PIXEL_BUCKETS = 16  # pixel-set capacities are multiples of 1/16 of the image's rows
 
 
 def _n_pixels(state: RenderState) -> int:
@@ -193,11 +193,11 @@ class Renderer:
     def _pixel_set(self, prim_id: np.ndarray, height: int) -> np.ndarray | None:
         """The pixels the caches of a ray cast hold (sorted indices), or None for all.
 
-        Every hit, plus the first misses up to a capacity in steps of 1/16 of the
-        image's rows (so a multiple of its width): the per-pixel programs then cost in proportion to the face (a face
-        filling a third of the image: a third of the work), and compile for few
-        shapes. The capacity grows when the hits outgrow it and shrinks when they
-        fall below half of it (so that it does not flap between two sizes).
+        Every hit, plus the first misses up to a capacity in steps of 1/16 of the image's rows
+        (so a multiple of its width): the per-pixel programs then cost in proportion to the face
+        (a face filling a third of the image: a third of the work), and compile for few shapes.
+        The capacity grows when the hits outgrow it and shrinks when they fall below half of it
+        (so that it does not flap between two sizes).
         """
         n_pixels = len(prim_id)
         hit = prim_id >= 0
@@ -452,8 +452,8 @@ class Renderer:
             three (C,), ``mask`` (C,), ``pixels`` (C,) int32 row-major pixel
             indices, or None when the set is the whole image (C = H W, in
             order). C is always a multiple of the image width. A face covering
-            a third of the image costs about a third of the whole-image work,
-            which also scatters the set into the image for ``fn``.
+            a third of the image then costs about a third of the per-pixel work
+            (the whole-image form also scatters the set into the image).
 
         Returns
         -------

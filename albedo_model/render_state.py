@@ -409,15 +409,14 @@ def image_stage(effects: Effects, fn, fused: frozenset, n_pixels: int, pixel_set
     """Jitted ``f(inputs, *args) -> fn(rgb, mask, *args)`` computing the pixel attributes
     named in ``fused`` (of "hits", "geometry", "albedo", "light") on the way.
 
-    ``inputs`` is a dict: always ``packed`` (shading parameters), ``prim_id`` (of
-    the whole image) and ``pixels`` (the pixel set, or None); ``triangles``, ``bary`` with "hits" fused,
-    else ``hits`` when geometry or albedo are; ``normals``, ``rotation``, ``view``
-    with "geometry", else ``geometry`` when the light is fused; ``light_packed``,
-    ``shadow`` with "light", else ``light``; ``albedo_dev`` with "albedo", else
-    ``albedo``. One loop over the pixel set reads the per-vertex arrays and
-    reduces into ``fn``'s result: ``fn(rgb, mask, pixels, *args)`` of the pixel
-    set with ``pixel_set``, else ``fn(rgb, mask, *args)`` of the whole image
-    (``n_pixels`` = H W; the shaded pixels are scattered into it). Cached per
+    ``inputs`` is a dict: always ``packed`` (shading parameters), ``prim_id`` (of the whole
+    image) and ``pixels`` (the pixel set, or None); ``triangles``, ``bary`` with "hits" fused,
+    else ``hits`` when geometry or albedo are; ``normals``, ``rotation``, ``view`` with
+    "geometry", else ``geometry`` when the light is fused; ``light_packed``, ``shadow`` with
+    "light", else ``light``; ``albedo_dev`` with "albedo", else ``albedo``. One loop over the
+    pixel set reads the per-vertex arrays and reduces into ``fn``'s result: ``fn(rgb, mask,
+    pixels, *args)`` of the pixel set with ``pixel_set``, else ``fn(rgb, mask, *args)`` of the
+    whole image (``n_pixels`` = H W; the shaded pixels are scattered into it). Cached per
     (effect set, ``fn``, ``fused``, image size, ``pixel_set``).
     """
     def image(inputs, *args):
