@@ -1,7 +1,7 @@
 """Where the built-in default model lives (a cached file; building it is ``pipeline``'s job).
 
 The default model is built deterministically by
-:func:`pipeline.default_model.ensure_default_model` on first use and cached at
+:func:`pipeline.synthetic.default_model.ensure_default_model` on first use and cached at
 :func:`default_model_path`. This module only knows the location, so that the
 lowest package can resolve ``"default"`` without importing the builder.
 """

@@ -36,12 +36,12 @@ class Block(enum.Flag):
     CAMERA = enum.auto()
     ALBEDO = enum.auto()
     LIGHT = enum.auto()
-    COLOR = enum.auto()
+    COLOR_TRANSFORM = enum.auto()
     SPECULAR_EXPONENT = enum.auto()
 
     GEOMETRY = SHAPE | EXPRESSION
     RAYS = POSE | CAMERA
-    ALL = SHAPE | EXPRESSION | POSE | CAMERA | ALBEDO | LIGHT | COLOR | SPECULAR_EXPONENT
+    ALL = SHAPE | EXPRESSION | POSE | CAMERA | ALBEDO | LIGHT | COLOR_TRANSFORM | SPECULAR_EXPONENT
 
 
 def _vec(x, n: int) -> tuple[float, ...]:
@@ -148,16 +148,16 @@ class ImageSize(NamedTuple):
 
 
 class MoMoCoefficients(NamedTuple):
-    """Model coefficients as stored in a ``.rps`` file (``color`` = shared albedo)."""
+    """Model coefficients; ``albedo`` (the shared diffuse/specular coefficients) is ``color`` in ``.rps``."""
 
     shape: np.ndarray
-    color: np.ndarray
+    albedo: np.ndarray
     expression: np.ndarray
     model_uri: str = ""
 
     @classmethod
-    def zeros(cls, shape: int = 0, color: int = 0, expression: int = 0, model_uri: str = ""):
-        return cls(np.zeros(shape), np.zeros(color), np.zeros(expression), model_uri)
+    def zeros(cls, shape: int = 0, albedo: int = 0, expression: int = 0, model_uri: str = ""):
+        return cls(np.zeros(shape), np.zeros(albedo), np.zeros(expression), model_uri)
 
 
 class RenderParameter(NamedTuple):

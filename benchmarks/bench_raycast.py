@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from albedo_model import camera as cam
-from albedo_model import raycast
+from albedo_model.render import raycast
 from albedo_model.params import Pose, default_square, fit_to_image_size
 
 

@@ -24,11 +24,11 @@ import numpy as np
 
 from albedo_model.model import vertex_normals
 from albedo_model.params import ColorTransform, DirectionalLight, SHLight, default_square
-from albedo_model.interpolation import interpolate_albedo, interpolate_geometry, pixel_hits
-from albedo_model.shading import (
+from albedo_model.shading.interpolation import interpolate_albedo, interpolate_geometry, pixel_hits
+from albedo_model.shading.image_formation import (
     Effects, build_shader, pixel_shader_function, shader_function, shading_params,
 )
-from albedo_model.shading_naive import shade_naive
+from albedo_model.shading.naive import shade_naive
 
 
 def heightfield_hits(size: int, grid: int, coverage: float):

@@ -11,7 +11,7 @@ This package imports only :mod:`albedo_model`.
 
 from proposals.base import Mixture, Move, Proposal, leaves, mixture, no_move
 from proposals.coefficients import Caricature, CoefficientWalk
-from proposals.colour import ColorTransformWalk
+from proposals.color_transform import ColorTransformWalk
 from proposals.light import (
     SHBandMixer,
     SHColorShift,
@@ -24,7 +24,7 @@ from proposals.light_solver import SHLightSolver, solve_sh_light
 from proposals.pose import Distance, FocalScaling, ImageCentered, Rotation, Translation
 from proposals.schedule import (
     CENTERING_LANDMARKS,
-    colour_proposal,
+    color_transform_proposal,
     default_image_proposal,
     landmark_stage_proposal,
     light_proposal,
@@ -39,7 +39,7 @@ __all__ = [
     "CoefficientWalk", "Caricature", "ColorTransformWalk",
     "SHIntensity", "SHBandMixer", "SHPerturbation", "SHColorShift", "SHSpatial",
     "SpecularExponentScaling", "SHLightSolver", "solve_sh_light",
-    "CENTERING_LANDMARKS", "pose_proposal", "momo_proposal", "colour_proposal",
+    "CENTERING_LANDMARKS", "pose_proposal", "momo_proposal", "color_transform_proposal",
     "light_proposal", "specular_exponent_proposal", "default_image_proposal",
     "landmark_stage_proposal",
 ]

@@ -182,7 +182,7 @@ class AlbedoConditional:
 
     def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
         """Draw a move from ``params`` (not modified) with ``rng``."""
-        c = np.asarray(params.momo.color, np.float64)
+        c = np.asarray(params.momo.albedo, np.float64)
         z = rng.normal(0.0, 1.0, c.shape[0])
         cond = self.conditional(params) if c.shape[0] else None
         if cond is None:
@@ -191,7 +191,7 @@ class AlbedoConditional:
         new = mean + np.linalg.solve(chol.T, z)  # (c' - m)^T Lambda (c' - m) = z^T z
         ratio = _log_density_terms(c, cond) + 0.5 * float(z @ z) - float(
             np.sum(np.log(np.diag(chol))))
-        return Move(params._replace(momo=params.momo._replace(color=new)), ratio, Block.ALBEDO,
+        return Move(params._replace(momo=params.momo._replace(albedo=new)), ratio, Block.ALBEDO,
                     self.name, joint=True)
 
 
@@ -233,7 +233,7 @@ class LightAlbedoExchange:
 
     def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
         """Draw a move from ``params`` (not modified) with ``rng``."""
-        c = np.asarray(params.momo.color, np.float64)
+        c = np.asarray(params.momo.albedo, np.float64)
         log_s = rng.normal(0.0, self.log_sigma)
         z = rng.normal(0.0, 1.0, c.shape[0])
         L = np.asarray(params.environment_map.coefficients, np.float64)
@@ -251,5 +251,5 @@ class LightAlbedoExchange:
         forward = -0.5 * float(z @ z) + float(np.sum(np.log(np.diag(chol))))
         ratio = L.size * log_s + _log_density_terms(c, here) - forward
         moved = params._replace(environment_map=SHLight(L * np.exp(log_s)),
-                                momo=params.momo._replace(color=new))
+                                momo=params.momo._replace(albedo=new))
         return Move(moved, ratio, Block.ALBEDO | Block.LIGHT, self.name, joint=True)

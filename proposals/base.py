@@ -9,9 +9,9 @@ casting only when pose, camera or geometry moved).
 
 ``Block`` -> :class:`~albedo_model.params.RenderParameter` fields:
 POSE -> ``pose``; CAMERA -> ``camera``; SHAPE -> ``momo.shape``;
-EXPRESSION -> ``momo.expression``; ALBEDO -> ``momo.color`` (shared diffuse and
+EXPRESSION -> ``momo.expression``; ALBEDO -> ``momo.albedo`` (shared diffuse and
 specular coefficients); LIGHT -> ``environment_map`` and ``directional_light``;
-COLOR -> ``color_transform``; SPECULAR_EXPONENT -> ``specular_exponent``.
+COLOR_TRANSFORM -> ``color_transform``; SPECULAR_EXPONENT -> ``specular_exponent``.
 ``view`` and ``image_size`` are never proposed.
 
 This module imports only :mod:`albedo_model`.

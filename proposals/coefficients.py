@@ -1,7 +1,7 @@
 """Proposals on the model coefficients: Gaussian random walks and caricature scaling.
 
 The coefficient vectors live in ``params.momo``: ``shape`` (Block.SHAPE),
-``expression`` (Block.EXPRESSION) and ``color`` (Block.ALBEDO, the coefficient
+``expression`` (Block.EXPRESSION) and ``albedo`` (Block.ALBEDO, the coefficient
 vector shared by diffuse and specular albedo). They are standard-normal PCA
 coefficients, so the scales are in prior standard deviations.
 
@@ -21,7 +21,7 @@ from proposals.base import Move, check_scale, no_move
 __all__ = ["COEFFICIENT_FIELDS", "CoefficientWalk", "Caricature"]
 
 #: ``MoMoCoefficients`` field of each coefficient block.
-COEFFICIENT_FIELDS = {Block.SHAPE: "shape", Block.EXPRESSION: "expression", Block.ALBEDO: "color"}
+COEFFICIENT_FIELDS = {Block.SHAPE: "shape", Block.EXPRESSION: "expression", Block.ALBEDO: "albedo"}
 _LABELS = {Block.SHAPE: "shape", Block.EXPRESSION: "expression", Block.ALBEDO: "albedo"}
 
 

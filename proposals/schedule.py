@@ -45,7 +45,7 @@ from albedo_model.params import Block, RenderParameter
 from proposals.albedo_solver import AlbedoConditional, AlbedoData, LightAlbedoExchange
 from proposals.base import Mixture, mixture
 from proposals.coefficients import Caricature, CoefficientWalk
-from proposals.colour import ColorTransformWalk
+from proposals.color_transform import ColorTransformWalk
 from proposals.light import (
     SHBandMixer,
     SHColorShift,
@@ -59,7 +59,7 @@ from proposals.pose import Distance, FocalScaling, ImageCentered, Rotation, Tran
 
 __all__ = [
     "CENTERING_LANDMARKS", "LandmarkPoint", "pose_proposal", "momo_proposal",
-    "colour_proposal", "light_proposal", "specular_exponent_proposal",
+    "color_transform_proposal", "light_proposal", "specular_exponent_proposal",
     "default_image_proposal", "landmark_stage_proposal",
 ]
 
@@ -160,7 +160,7 @@ def momo_proposal(*, block_size: int | None = 10, expression_weight: float = 0.5
                    name="momo")
 
 
-def colour_proposal() -> Mixture:
+def color_transform_proposal() -> Mixture:
     """The colour-transform mixture (gain, contrast and offset all move)."""
     return mixture(*((w, ColorTransformWalk(g, 0.01, 1e-4))
                      for g, w in zip((0.01, 0.001, 0.0005), _SCALE_WEIGHTS)), name="colour")
@@ -238,7 +238,7 @@ def default_image_proposal(landmark_point: LandmarkPoint | None, *,
             name="albedo-conditional")))
     return mixture(
         (1.0, pose_proposal(landmark_point)),
-        (1.0, colour_proposal()),
+        (1.0, color_transform_proposal()),
         (3.0, momo_proposal(block_size=block_size, expression_weight=expression_weight)),
         (2.0, light_proposal(solver_data, solver_sigma=solver_sigma, solver_ridge=solver_ridge)),
         (specular_weight, specular_exponent_proposal()),

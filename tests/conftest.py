@@ -27,7 +27,7 @@ HEAD_RADII_MM = np.array([75.0, 100.0, 90.0])
 
 @dataclasses.dataclass(frozen=True)
 class StandInHead:
-    """Same attributes as ``pipeline.template_head.TemplateHead``."""
+    """Same attributes as ``pipeline.synthetic.head.template_head.TemplateHead``."""
 
     vertices: np.ndarray
     triangles: np.ndarray
@@ -79,7 +79,7 @@ def make_stand_in_head(subdivisions: int = 4) -> StandInHead:
 
 @pytest.fixture(scope="session")
 def stand_in_head() -> StandInHead:
-    """A 2562-vertex stand-in for ``pipeline.template_head.TemplateHead``."""
+    """A 2562-vertex stand-in for ``pipeline.synthetic.head.template_head.TemplateHead``."""
     return make_stand_in_head()
 
 
@@ -91,7 +91,7 @@ def default_model_file(tmp_path_factory) -> Path:
     """
     import os
 
-    from pipeline.default_model import ensure_default_model
+    from pipeline.synthetic.default_model import ensure_default_model
 
     cache = tmp_path_factory.mktemp("mcmcfit-cache")
     old = os.environ.get("MCMCFIT_CACHE")

@@ -56,7 +56,7 @@ def resolve_model_path(spec: str | os.PathLike) -> Path:
     ------
     InputError
         The file does not exist, or the built-in model has not been built yet
-        (``mcmcfit.models.resolve_model`` builds it).
+        (``mcmcfit.jobs.model_spec.resolve_model`` builds it).
     """
     if isinstance(spec, str) and spec == DEFAULT_MODEL:
         path = default_model_path()

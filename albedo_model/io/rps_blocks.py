@@ -133,10 +133,10 @@ def read_directional_light(obj: JSON, where: str, shininess: float | None = None
 
 
 def read_momo(obj: JSON, where: str, *, expression: bool) -> MoMoCoefficients:
-    """``{shape, color[, expression], modelURI}`` (V2/V3 renderObject, V4 momo)."""
+    """``{shape, color[, expression], modelURI}`` (V2/V3 renderObject, V4 momo); ``color`` is the albedo."""
     return MoMoCoefficients(
         shape=get_number_list(obj, "shape", where),
-        color=get_number_list(obj, "color", where),
+        albedo=get_number_list(obj, "color", where),
         expression=get_number_list(obj, "expression", where) if expression else np.zeros(0),
         model_uri=get_string(obj, "modelURI", where),
     )
@@ -198,7 +198,7 @@ def directional_light_json(light: DirectionalLight) -> JSON:
 def momo_json(momo: MoMoCoefficients) -> JSON:
     """The V4 ``momo`` object."""
     return {
-        "shape": _floats(momo.shape), "color": _floats(momo.color),
+        "shape": _floats(momo.shape), "color": _floats(momo.albedo),
         "expression": _floats(momo.expression), "modelURI": str(momo.model_uri),
     }
 

@@ -149,7 +149,7 @@ def read_v1(data: JSON) -> RenderParameter:
     momo_obj = get_object(data, "morphableModel")
     momo = MoMoCoefficients(
         shape=get_number_list(momo_obj, "shapeCoefficients", "morphableModel"),
-        color=get_number_list(momo_obj, "colorCoefficients", "morphableModel"),
+        albedo=get_number_list(momo_obj, "colorCoefficients", "morphableModel"),
         expression=np.zeros(0),
         model_uri=get_string(momo_obj, "modelURI", "morphableModel"),
     )

@@ -7,7 +7,7 @@ therefore the central square of side 250 / 2.2 ~ 113.6 px:
 ``(68.2, 68.2, 181.8, 181.8)`` in a 250x250 image, i.e. the fractions
 ``(0.2727, 0.2727, 0.7273, 0.7273)`` of the image. For other sizes the box
 scales with the image (the same fractions). The face-box likelihood
-(:class:`mcmcfit.landmark_target.FaceBoxTarget`) treats the box as a rough
+(:class:`mcmcfit.targets.landmarks.FaceBoxTarget`) treats the box as a rough
 measurement (10 % scale and centre spread), so the detector's jitter is
 absorbed by the sampler.
 

@@ -26,7 +26,7 @@ __all__ = ["COMPLETE_MARKER", "TEMP_PREFIXES", "safe_relative", "result_dir", "i
 COMPLETE_MARKER = "summary.json"
 
 #: A fit job writes into ``.<name>.partial-*`` and moves a replaced folder to
-#: ``.<name>.old-*`` (:func:`mcmcfit.fit_job.atomic_folder`); a killed job leaves them.
+#: ``.<name>.old-*`` (:func:`mcmcfit.jobs.fit_job.atomic_folder`); a killed job leaves them.
 TEMP_PREFIXES = ("partial-", "old-")
 
 _UNSAFE_CHARS = re.compile(r"[\x00-\x1f<>:\"|?*\\]")

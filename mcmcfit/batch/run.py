@@ -29,7 +29,7 @@ from mcmcfit.batch.out_paths import is_complete, remove_stale_temp_dirs, result_
 from mcmcfit.batch.records import record_from_folder
 from mcmcfit.batch.seeds import image_seed
 from mcmcfit.batch.task import FitTask, run_task
-from mcmcfit.fit_config import FitConfig
+from mcmcfit.fitting.config import FitConfig
 
 __all__ = ["BatchOptions", "BatchPlan", "BatchResult", "plan_batch", "run_batch"]
 

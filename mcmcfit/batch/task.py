@@ -1,7 +1,7 @@
 """One task of a batch: fit one image into its result folder, never raise.
 
 :class:`FitTask` holds only plain values, so it pickles to a spawned process
-or a Dask worker. :func:`run_task` runs :func:`mcmcfit.fit_job.run_fit_job`
+or a Dask worker. :func:`run_task` runs :func:`mcmcfit.jobs.fit_job.run_fit_job`
 (imported inside the task, after the worker's thread limits are in place) and
 returns an outcome dict; every exception becomes a ``"failed"`` outcome with a
 one-line reason, so one bad image never stops the batch. The worker writes the
@@ -52,7 +52,7 @@ class FitTask:
     model : str
         Model file path (or ``"default"``).
     config : dict
-        :meth:`mcmcfit.fit_config.FitConfig.to_dict`.
+        :meth:`mcmcfit.fitting.config.FitConfig.to_dict`.
     seed : int
         The image's seed (:func:`mcmcfit.batch.seeds.image_seed`).
     force : bool
@@ -126,8 +126,8 @@ def run_task(task: FitTask) -> dict:
     base = {"path": task.source, "relative": task.relative, "seed": task.seed,
             "host": socket.gethostname(), "pid": os.getpid()}
     try:
-        from mcmcfit.fit_config import FitConfig
-        from mcmcfit.fit_job import run_fit_job
+        from mcmcfit.fitting.config import FitConfig
+        from mcmcfit.jobs.fit_job import run_fit_job
 
         # warnings go into the journal instead of interleaving with the progress bar
         with warnings.catch_warnings(record=True) as caught:

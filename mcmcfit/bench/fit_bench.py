@@ -1,9 +1,9 @@
 """``mcmcfit bench fit``: the default schedule on the demo case, timed per stage and proposal kind,
 with the albedo accuracy reached at checkpoints along the chain.
 
-The demo case is :func:`mcmcfit.synthetic_case.synthetic_case` of the model
+The demo case is :func:`mcmcfit.jobs.synthetic_case.synthetic_case` of the model
 with seed 0 (250 x 250, SH light, specular, gamma). One call of
-:func:`mcmcfit.fit.fit` runs; every step's wall time is recorded by the chain
+:func:`mcmcfit.fitting.fit.fit` runs; every step's wall time is recorded by the chain
 recorder, so the time "after n image steps" is the setup, the landmark stage
 and the first n image steps of every chain (the time a fit with
 ``steps=n`` would have taken, up to noise), and the accuracy there is scored
@@ -23,11 +23,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from albedo_model.model import MorphableModel
-from mcmcfit.fit import fit
-from mcmcfit.fit_accuracy import albedo_score, pose_error_deg
-from mcmcfit.fit_config import FitConfig
-from mcmcfit.fit_result import FitResult
-from mcmcfit.synthetic_case import SyntheticCase, synthetic_case
+from mcmcfit.fitting.fit import fit
+from mcmcfit.outputs.accuracy import albedo_score, pose_error_deg
+from mcmcfit.fitting.config import FitConfig
+from mcmcfit.fitting.result import FitResult
+from mcmcfit.jobs.synthetic_case import SyntheticCase, synthetic_case
 
 __all__ = ["REFERENCE_SECONDS", "FitBench", "format_fit_bench", "plot_fit_bench",
            "proposal_kind", "run_fit_bench"]

@@ -3,7 +3,7 @@
 Everything is recomputed from the parameters on every step, the obvious way:
 the full model instance with all coefficients (NumPy), a new Embree scene,
 the camera rays, vertex normals in NumPy, and the unspecialised
-:func:`albedo_model.shading_naive.shade_naive` on host arrays (copied to the
+:func:`albedo_model.shading.naive.shade_naive` on host arrays (copied to the
 device on each call), followed by the same likelihood as the fast path.
 
 This module imports only ``albedo_model``.
@@ -19,9 +19,9 @@ import numpy as np
 from albedo_model.camera import _eye_rays, camera_rays, euler_rotation, eye_from_world
 from albedo_model.model import MorphableModel, vertex_normals
 from albedo_model.params import RenderParameter
-from albedo_model.raycast import RayCaster
-from albedo_model.shading import Effects, shading_params
-from albedo_model.shading_naive import shade_naive
+from albedo_model.render.raycast import RayCaster
+from albedo_model.shading.image_formation import Effects, shading_params
+from albedo_model.shading.naive import shade_naive
 
 __all__ = ["NaiveStep"]
 
@@ -61,10 +61,10 @@ class NaiveStep:
         hits = caster.cast(origins, directions, tfar=float(p.camera.far - p.camera.near),
                            image_shape=(h, w))
         normals = vertex_normals(vertices, self._triangles).astype(np.float32)
-        diffuse = m.diffuse.instance(p.momo.color).reshape(-1, 3).astype(np.float32)
+        diffuse = m.diffuse.instance(p.momo.albedo).reshape(-1, 3).astype(np.float32)
         specular = None
         if m.specular is not None:
-            c = p.momo.color[: m.specular.rank] if m.shared_albedo else None
+            c = p.momo.albedo[: m.specular.rank] if m.shared_albedo else None
             specular = m.specular.instance(c).reshape(-1, 3).astype(np.float32)
         _, eye_dirs = _eye_rays(p.camera, p.image_size)
         r_view, _ = eye_from_world(p.view)

@@ -39,8 +39,8 @@ from albedo_model.params import (
     Block, MoMoCoefficients, Pose, RenderParameter, SHLight, default_square, fit_to_image_size,
 )
 from albedo_model.camera import camera_rays
-from albedo_model.raycast import RayCaster, default_threads, embree_pass
-from albedo_model.render import Renderer
+from albedo_model.render.raycast import RayCaster, default_threads, embree_pass
+from albedo_model.render.renderer import Renderer
 from mcmcfit.bench.naive_step import NaiveStep
 from mcmcfit.bench.synthetic_face import synthetic_face_model
 
@@ -110,14 +110,14 @@ def face_scene(model, size: int, coverage: float = 0.6) -> RenderParameter:
     f_px = size * p.camera.focal_length / p.camera.sensor_size[0]
     # pi a b (f / d)^2 = coverage * size^2 for the outline (the rim lies near z = 0)
     dist = f_px * np.sqrt(np.pi * half_w * half_h / (coverage * size * size))
-    n_shape, n_color = model.shape.rank, model.diffuse.rank
+    n_shape, n_albedo = model.shape.rank, model.diffuse.rank
     n_expr = 0 if model.expression is None else model.expression.rank
     sh = SHLight.frontal().coefficients.copy()
     sh[1:4] += (0.05, 0.1, -0.05)
     return p._replace(
         pose=Pose(1.0, (0.0, 0.0, -float(dist)), 0.0, 0.05, 0.0),
         environment_map=SHLight(sh),
-        momo=MoMoCoefficients(np.zeros(n_shape), np.zeros(n_color), np.zeros(n_expr)),
+        momo=MoMoCoefficients(np.zeros(n_shape), np.zeros(n_albedo), np.zeros(n_expr)),
     )
 
 
@@ -126,11 +126,11 @@ def _proposal(params: RenderParameter, kind: str, step: int, rng: np.random.Gene
     if kind == "pose":
         return params._replace(pose=params.pose._replace(yaw=params.pose.yaw + rng.normal(0, 0.01)))
     if kind in ("shape", "albedo"):
-        coeffs = m.shape if kind == "shape" else m.color
+        coeffs = m.shape if kind == "shape" else m.albedo
         start = (_BLOCK * step) % max(len(coeffs), 1)
         new = coeffs.copy()
         new[start:start + _BLOCK] += rng.normal(0, 0.1, len(new[start:start + _BLOCK]))
-        momo = m._replace(shape=new) if kind == "shape" else m._replace(color=new)
+        momo = m._replace(shape=new) if kind == "shape" else m._replace(albedo=new)
         return params._replace(momo=momo)
     sh = params.environment_map.coefficients + rng.normal(0, 0.01, (9, 3))
     return params._replace(environment_map=SHLight(sh))
@@ -153,7 +153,7 @@ def _target(renderer: Renderer, params: RenderParameter, rng: np.random.Generato
     """A fixed target: the scene with other albedo and light, plus noise (device arrays)."""
     m = params.momo
     other = params._replace(
-        momo=m._replace(color=rng.normal(0, 0.5, len(m.color))),
+        momo=m._replace(albedo=rng.normal(0, 0.5, len(m.albedo))),
         environment_map=SHLight(params.environment_map.coefficients * 1.1),
     )
     img = renderer.render(other).image.reshape(-1, 3)
@@ -288,7 +288,7 @@ def _time_size(model, size: int, steps: int, warmup: int, naive_steps: int, thre
 
 def _embree_reference(model, size: int = 250, repeats: int = 15) -> tuple[float, float]:
     """Median ms of one single-threaded :meth:`RayCaster.cast` of the mean face at ``size``²,
-    and of the bare Embree query inside it (:func:`albedo_model.raycast.embree_pass`),
+    and of the bare Embree query inside it (:func:`albedo_model.render.raycast.embree_pass`),
     timed alternately.
 
     A yardstick of the machine: ``performance-notes.md`` measured 6.6 ms for the
@@ -354,7 +354,7 @@ def run_render_bench(sizes: Sequence[int] = (128, 250, 512), steps: int = 40, *,
         f"built in {build_s:.2f} s")
     embree_ms, embree_bare_ms = _embree_reference(model)
     rows, method = [], "?"
-    with threadpool_limits(limits=1, user_api="blas"):  # as in a fit (mcmcfit.fit)
+    with threadpool_limits(limits=1, user_api="blas"):  # as in a fit (mcmcfit.fitting.fit)
         for size in sizes:
             size_rows, method = _time_size(model, int(size), steps, warmup, naive_steps,
                                            threads, seed, log)

@@ -97,7 +97,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
     from mcmcfit.batch.run import BatchOptions, run_batch
     from mcmcfit.batch.task import LFW_BOX
     from mcmcfit.batch.worker_env import usable_cores
-    from mcmcfit.models import resolve_model
+    from mcmcfit.jobs.model_spec import resolve_model
 
     src = Path(args.input)
     if not src.exists():
@@ -110,7 +110,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
     if args.face_box_default:
         face_box = LFW_BOX
     elif args.face_box:
-        from mcmcfit.fit_job import parse_face_box
+        from mcmcfit.jobs.fit_job import parse_face_box
 
         parse_face_box(args.face_box)  # validate now, not once per image
         face_box = args.face_box

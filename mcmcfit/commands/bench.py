@@ -123,8 +123,8 @@ def run_fit(args: argparse.Namespace) -> int:
         run_fit_bench,
         write_json,
     )
-    from mcmcfit.fit_config import FitConfig
-    from mcmcfit.models import load_model_spec
+    from mcmcfit.fitting.config import FitConfig
+    from mcmcfit.jobs.model_spec import load_model_spec
 
     changes = {k: v for k, v in (("steps", args.steps), ("landmark_steps", args.landmark_steps),
                                  ("chains", args.chains)) if v is not None}

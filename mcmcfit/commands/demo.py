@@ -43,7 +43,7 @@ def run_demo(out_dir, *, model="default", size: int = 250, case_seed: int = 0, s
     size : int
         Image width and height.
     case_seed : int
-        Seed of :func:`mcmcfit.synthetic_case.synthetic_case`.
+        Seed of :func:`mcmcfit.jobs.synthetic_case.synthetic_case`.
     seed : int
         Seed of the fit.
     config : FitConfig, optional
@@ -57,9 +57,9 @@ def run_demo(out_dir, *, model="default", size: int = 250, case_seed: int = 0, s
     """
     from albedo_model.io.rps import write_rps
     from albedo_model.io.tlms import Landmark, write_tlms
-    from mcmcfit.fit_job import _as_loaded, _check_out_dir, fit_into_folder
+    from mcmcfit.jobs.fit_job import _as_loaded, _check_out_dir, fit_into_folder
     from mcmcfit.outputs.truth import Truth
-    from mcmcfit.synthetic_case import synthetic_case
+    from mcmcfit.jobs.synthetic_case import synthetic_case
 
     out = Path(out_dir)
     _check_out_dir(out, force)
@@ -83,12 +83,12 @@ def run_demo(out_dir, *, model="default", size: int = 250, case_seed: int = 0, s
 
 
 def run(args: argparse.Namespace) -> int:
-    from mcmcfit.fit_job import load_model_cached
-    from mcmcfit.fit_progress import FitProgressBar
+    from mcmcfit.jobs.fit_job import load_model_cached
+    from mcmcfit.fitting.progress import FitProgressBar
 
     cfg = config_from_args(args)
     out = Path(args.output)
-    from mcmcfit.fit_job import _check_out_dir
+    from mcmcfit.jobs.fit_job import _check_out_dir
 
     _check_out_dir(out, args.force)
     loaded = load_model_cached(args.model, progress=not args.quiet)

@@ -35,7 +35,7 @@ def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "
 def config_from_args(args: argparse.Namespace, **defaults):
     """The FitConfig of ``--config`` (or the defaults) with the schedule options applied."""
     from albedo_model.errors import InputError
-    from mcmcfit.fit_config import FitConfig
+    from mcmcfit.fitting.config import FitConfig
 
     if args.config:
         path = Path(args.config)
@@ -59,7 +59,7 @@ def cli_warnings(command: str):
     Warnings raised in the project's packages (e.g. landmark names the model does
     not know) are for the user; those of libraries keep Python's format.
     """
-    from mcmcfit.fit_job import FitWarning
+    from mcmcfit.jobs.fit_job import FitWarning
 
     original = warnings.showwarning
     root = Path(__file__).resolve().parents[2]
@@ -100,8 +100,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from mcmcfit.fit_job import run_fit_job
-    from mcmcfit.fit_progress import FitProgressBar
+    from mcmcfit.jobs.fit_job import run_fit_job
+    from mcmcfit.fitting.progress import FitProgressBar
 
     cfg = config_from_args(args)
     out = Path(args.output)

@@ -23,7 +23,7 @@ from albedo_model.io.model_files import (
     model_file_kind,
 )
 from albedo_model.io.momo_h5 import read_albedo_part
-from mcmcfit.models import resolve_model
+from mcmcfit.jobs.model_spec import resolve_model
 
 __all__ = ["register", "ACTIONS", "model_info"]
 

@@ -43,7 +43,7 @@ def sample_faces(model, n: int, rng: np.random.Generator, *, size: int = 200,
     from albedo_model.params import (
         Block, DirectionalLight, ImageSize, MoMoCoefficients, Pose, SHLight, default_square,
     )
-    from albedo_model.render import Renderer
+    from albedo_model.render.renderer import Renderer
 
     lo, hi = model.vertices.min(0), model.vertices.max(0)
     centre = (lo + hi) / 2
@@ -80,7 +80,7 @@ def sample_faces(model, n: int, rng: np.random.Generator, *, size: int = 200,
 def run(args: argparse.Namespace) -> int:
     """Render the grid and write it; return the exit code."""
     from albedo_model.io.image_io import write_png
-    from mcmcfit.models import load_model_spec
+    from mcmcfit.jobs.model_spec import load_model_spec
 
     if args.n < 1 or args.size < 16 or args.columns < 1:
         raise InputError("--n and --columns must be positive and --size at least 16")

@@ -40,15 +40,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _template():
-    from pipeline.template_head import build_template_head
+    from pipeline.synthetic.head.template_head import build_template_head
 
     return build_template_head()
 
 
 def run(args: argparse.Namespace) -> int:
     """Compute and plot the curves; print a short table; return the exit code."""
-    from pipeline.generalisation import plot_specular_generalisation, specular_generalisation
-    from pipeline.subjects import make_subjects
+    from pipeline.modelling.generalisation import plot_specular_generalisation, specular_generalisation
+    from pipeline.synthetic.subjects import make_subjects
 
     if args.subjects < 3:
         raise InputError(f"--subjects must be at least 3, got {args.subjects}")

@@ -21,8 +21,8 @@ __all__ = ["ACTIONS", "register"]
 def _run_stitch(args: argparse.Namespace) -> int:
     from albedo_model.errors import InputError
     from albedo_model.io.image_io import write_png
-    from pipeline.lightstage_stitch import stitch_capture, write_texture
-    from pipeline.texture_preview import stitch_preview
+    from pipeline.texturing.stitch_capture import stitch_capture, write_texture
+    from pipeline.texturing.texture_preview import stitch_preview
 
     if args.reference_view is not None and args.reference_view < 1:
         raise InputError(f"--reference-view counts from 1, got {args.reference_view}")

@@ -1,7 +1,7 @@
 """``mcmcfit pipeline build``: capture folder -> AlbedoMM model files.
 
 Processes every subject (cached in a work folder, so a rerun resumes),
-completes, models and evaluates the population (:mod:`pipeline.lightstage_build`).
+completes, models and evaluates the population (:mod:`pipeline.lightstage.build`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ __all__ = ["add_arguments", "run"]
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``build`` options to ``parser``."""
     parser.add_argument("captures", metavar="CAPTURES_DIR", type=Path,
-                        help="capture folder (layout: pipeline/capture_folder.py)")
+                        help="capture folder (layout: pipeline/lightstage/capture_folder.py)")
     parser.add_argument("-o", "--output", type=Path, required=True, metavar="MODEL.h5",
                         help="model to write (transferred variant; the other variants, the "
                              "leave-one-out plot and a JSON report are written beside it)")
@@ -42,9 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _preview(path: Path, report, captures: Path) -> None:
     import numpy as np
 
-    from pipeline.albedo_preview import write_albedo_preview
-    from pipeline.capture_folder import read_template
-    from pipeline.lightstage_io import load_mesh
+    from pipeline.synthetic.albedo_preview import write_albedo_preview
+    from pipeline.lightstage.capture_folder import read_template
+    from pipeline.lightstage.io import load_mesh
 
     template = read_template(captures)
     name = report.subjects[0]
@@ -69,7 +69,7 @@ def _preview(path: Path, report, captures: Path) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build; print progress on stderr and a summary."""
-    from pipeline.lightstage_build import BuildSettings, build_model
+    from pipeline.lightstage.build import BuildSettings, build_model
 
     if args.jobs < 1:
         raise InputError("--jobs must be >= 1")

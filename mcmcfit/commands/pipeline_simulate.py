@@ -1,8 +1,8 @@
 """``mcmcfit pipeline simulate``: write simulated lightstage captures (a capture folder).
 
 Every effect of the capture simulator is on by default and can be switched
-off (``--no-noise``, ``--no-specular`` ...); see :mod:`pipeline.lightstage_sim`
-and the folder layout in :mod:`pipeline.capture_folder`.
+off (``--no-noise``, ``--no-specular`` ...); see :mod:`pipeline.synthetic.capture`
+and the folder layout in :mod:`pipeline.lightstage.capture_folder`.
 """
 
 from __future__ import annotations
@@ -50,8 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate; print one line per subject and a summary."""
-    from pipeline.capture_simulation import simulate_captures
-    from pipeline.lightstage_sim import CaptureEffects, SimulationSettings
+    from pipeline.synthetic.write_captures import simulate_captures
+    from pipeline.synthetic.capture import CaptureEffects, SimulationSettings
 
     if args.subjects < 1 or args.external < 0 or args.jobs < 1:
         raise InputError("--subjects must be >= 1, --external >= 0 and --jobs >= 1")

@@ -40,8 +40,8 @@ def run(args: argparse.Namespace) -> int:
     from albedo_model.io.image_io import write_png
     from albedo_model.io.rps import read_rps
     from albedo_model.params import ImageSize
-    from albedo_model.render import render
-    from mcmcfit.models import load_model_spec
+    from albedo_model.render.renderer import render
+    from mcmcfit.jobs.model_spec import load_model_spec
 
     params = read_rps(args.params)
     model = load_model_spec(args.model)

@@ -1,7 +1,7 @@
 """Everything a fit writes into its result folder.
 
 :func:`write_fit_outputs` (:mod:`mcmcfit.outputs.folder`) writes, into a folder
-the caller makes atomic (:func:`mcmcfit.fit_job.atomic_folder`): the posterior
+the caller makes atomic (:func:`mcmcfit.jobs.fit_job.atomic_folder`): the posterior
 albedo (``posterior.npz``), best and mean parameters (``.rps``), pictures of
 the fit, the albedo and its uncertainty, the mean mesh, the chains, the summary
 and the HTML report. The pieces live in small modules: posterior albedo

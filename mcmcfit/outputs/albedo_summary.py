@@ -15,8 +15,8 @@ from typing import NamedTuple
 import numpy as np
 
 from albedo_model.model import MorphableModel
-from mcmcfit.fit_result import FitResult
-from mcmcfit.posterior import AlbedoPosterior, albedo_posterior
+from mcmcfit.fitting.result import FitResult
+from mcmcfit.outputs.posterior import AlbedoPosterior, albedo_posterior
 
 __all__ = ["PosteriorAlbedo", "albedo_coefficient_samples", "posterior_albedo",
            "write_posterior_npz"]
@@ -44,10 +44,10 @@ class PosteriorAlbedo(NamedTuple):
 
 def albedo_coefficient_samples(result: FitResult) -> np.ndarray:
     """(S, j) pooled stage-2 albedo coefficients after the burn-in (best sample if none)."""
-    sl = result.layout.slice("color")
+    sl = result.layout.slice("albedo")
     pooled = result.get_chain(2, flat=True, discard=result.config.burn_fraction)
     if pooled.shape[0] == 0:
-        return np.asarray(result.best.params.momo.color, np.float64)[None, :]
+        return np.asarray(result.best.params.momo.albedo, np.float64)[None, :]
     return pooled[:, sl]
 
 
@@ -60,7 +60,7 @@ def posterior_albedo(result: FitResult, model: MorphableModel, visible: np.ndarr
     result : FitResult
     model : MorphableModel
     visible : (n,) bool
-        Vertices visible in the fitted view (:func:`mcmcfit.posterior.visible_vertices`).
+        Vertices visible in the fitted view (:func:`mcmcfit.outputs.posterior.visible_vertices`).
     level : float
         Probability of the central credible interval.
     """

@@ -12,7 +12,7 @@ import os
 
 import numpy as np
 
-from mcmcfit.fit_result import FitResult
+from mcmcfit.fitting.result import FitResult
 
 __all__ = ["save_scalar_map", "save_traces", "save_landmark_figure"]
 
@@ -58,7 +58,7 @@ def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray,
 
 
 def save_traces(path: str | os.PathLike, result: FitResult,
-                columns: tuple[str, ...] = ("pose.yaw", "pose.pitch", "color.0", "shape.0")) -> None:
+                columns: tuple[str, ...] = ("pose.yaw", "pose.pitch", "albedo.0", "shape.0")) -> None:
     """Per-step log densities of both stages and a few sampled parameters, per chain."""
     cols = [c for c in columns if c in result.layout.names]
     fig = _figure(11.0, 5.0 if cols else 2.6)

@@ -15,7 +15,7 @@ Files (see the README's "Using it" section):
 ``traces.png``                  log densities and sampled parameters per step (figure)
 ``mesh.ply``                    mean shape with posterior-mean diffuse albedo (gamma 2.2)
 ``chain.h5``                    every chain (:meth:`FitResult.save_chain`)
-``config.json``                 the :class:`~mcmcfit.fit_config.FitConfig`
+``config.json``                 the :class:`~mcmcfit.fitting.config.FitConfig`
 ``summary.json``                see :func:`mcmcfit.outputs.summary.build_summary`
 ``report.html``                 everything above on one page
 ==============================  ==========================================================
@@ -35,15 +35,15 @@ import numpy as np
 from albedo_model.io.image_io import write_png
 from albedo_model.io.mesh_export import write_mesh
 from albedo_model.io.rps import write_rps
-from albedo_model.render import Renderer
-from mcmcfit.fit_result import FitResult
-from mcmcfit.landmark_target import target_landmarks
+from albedo_model.render.renderer import Renderer
+from mcmcfit.fitting.result import FitResult
+from mcmcfit.targets.landmarks import target_landmarks
 from mcmcfit.outputs.albedo_summary import posterior_albedo, write_posterior_npz
 from mcmcfit.outputs.figures import save_landmark_figure, save_scalar_map, save_traces
 from mcmcfit.outputs.summary import build_summary, landmark_errors
 from mcmcfit.outputs.truth import Truth, albedo_error
 from mcmcfit.outputs.vertex_maps import encode_display, frontal_params, vertex_image
-from mcmcfit.posterior import visible_vertices
+from mcmcfit.outputs.posterior import visible_vertices
 
 __all__ = ["OUTPUT_FILES", "write_fit_outputs"]
 
@@ -68,7 +68,7 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     folder : path-like
         An existing (empty, temporary) folder.
     result : FitResult
-    loaded : mcmcfit.fit_job.LoadedModel
+    loaded : mcmcfit.jobs.fit_job.LoadedModel
         The fitted model with its file SHA-256 and URI.
     image : (H, W, 3) float in [0, 1]
         The target as fitted (gamma-encoded).
@@ -162,7 +162,7 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
                             extra_timings={"outputs_s": time.perf_counter() - t0})
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n",
                                       encoding="utf-8")
-    from mcmcfit.report_html import write_report
+    from mcmcfit.outputs.report import write_report
 
     write_report(out / "report.html", summary)
     return summary

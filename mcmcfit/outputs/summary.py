@@ -11,7 +11,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 import numpy as np
 
-from mcmcfit.fit_result import FitResult
+from mcmcfit.fitting.result import FitResult
 
 __all__ = ["SUMMARY_FORMAT", "landmark_errors", "build_summary", "json_safe", "software_versions"]
 

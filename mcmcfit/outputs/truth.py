@@ -1,6 +1,6 @@
 """Errors of a posterior albedo against a known truth (synthetic cases, the demo).
 
-This module imports numpy and :mod:`mcmcfit.fit_accuracy` (the error measures).
+This module imports numpy and :mod:`mcmcfit.outputs.accuracy` (the error measures).
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mcmcfit.fit_accuracy import interval_error
+from mcmcfit.outputs.accuracy import interval_error
 
 __all__ = ["Truth", "albedo_error"]
 

@@ -1,7 +1,7 @@
 """Per-vertex values as pictures: interpolated over a rendered view, and the frontal view.
 
 A render state knows, for every pixel, the hit triangle's corner vertices and
-barycentric weights (:class:`albedo_model.interpolation.PixelHits`). Any
+barycentric weights (:class:`albedo_model.shading.interpolation.PixelHits`). Any
 per-vertex quantity (posterior mean albedo, its standard deviation) is then a
 picture of that view by the same interpolation the renderer applies to albedo.
 
@@ -23,7 +23,7 @@ def vertex_image(state, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     Parameters
     ----------
-    state : albedo_model.render.RenderState
+    state : albedo_model.render.renderer.RenderState
     values : (n,) or (n, k) float
         One value (or k) per model vertex.
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from albedo_model.io.image_io import write_png
 from albedo_model.io.tlms import Landmark, write_tlms
-from mcmcfit.synthetic_case import synthetic_case
+from mcmcfit.jobs.synthetic_case import synthetic_case
 
 SUBJECTS = ("Ann_Alpha", "Bob_Beta", "Cy_Gamma")
 

@@ -8,8 +8,8 @@ import trimesh
 from albedo_model.model import MorphableModel
 from albedo_model.params import MoMoCoefficients, RenderParameter, default_square, fit_to_image_size
 from albedo_model.pca import PCAPart
-from albedo_model.render import Renderer
-from albedo_model.shading import encode_gamma
+from albedo_model.render.renderer import Renderer
+from albedo_model.shading.image_formation import encode_gamma
 
 RADII = np.array([75.0, 100.0, 90.0])
 

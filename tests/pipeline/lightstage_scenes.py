@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from pipeline.lightstage_camera import LightstageCamera
+from pipeline.texturing.cameras import LightstageCamera
 
 
 def look_at(eye, target, up, *, focal_px: float, size: tuple[int, int],

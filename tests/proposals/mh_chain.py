@@ -58,7 +58,7 @@ def base_state(width: int = 250, height: int = 250) -> RenderParameter:
     return fit_to_image_size(default_square(), width, height)
 
 
-def random_state(rng: np.random.Generator, *, n_shape: int = 50, n_color: int = 50,
+def random_state(rng: np.random.Generator, *, n_shape: int = 50, n_albedo: int = 50,
                  n_expression: int = 5) -> RenderParameter:
     """A random but valid state: face ~1 m in front, small angles, random light and colour."""
     p = base_state()
@@ -74,7 +74,7 @@ def random_state(rng: np.random.Generator, *, n_shape: int = 50, n_color: int = 
     ct = ColorTransform(gain=tuple(float(v) for v in np.exp(rng.normal(0, 0.1, 3))),
                         contrast=float(1 + rng.normal(0, 0.05)),
                         offset=tuple(float(v) for v in rng.normal(0, 0.01, 3)))
-    momo = MoMoCoefficients(rng.normal(size=n_shape), rng.normal(size=n_color),
+    momo = MoMoCoefficients(rng.normal(size=n_shape), rng.normal(size=n_albedo),
                             rng.normal(size=n_expression), "model.h5")
     return p._replace(pose=pose, camera=cam, environment_map=light, color_transform=ct,
                       momo=momo, specular_exponent=float(20 * np.exp(rng.normal(0, 0.2))))
@@ -97,7 +97,7 @@ def changed_blocks(a: RenderParameter, b: RenderParameter) -> Block:
             or a.directional_light != b.directional_light):
         out |= Block.LIGHT
     if a.color_transform != b.color_transform:
-        out |= Block.COLOR
+        out |= Block.COLOR_TRANSFORM
     if a.specular_exponent != b.specular_exponent:
         out |= Block.SPECULAR_EXPONENT
     return out

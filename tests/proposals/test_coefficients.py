@@ -60,7 +60,7 @@ def test_walk_chain_matches_gaussian():
 def test_caricature_scales_and_has_ratio_k_log_s():
     x = np.random.default_rng(2).normal(size=7)
     move = Caricature(Block.ALBEDO, 0.2)(np.random.default_rng(3), _state(color=x))
-    s = move.params.momo.color / x
+    s = move.params.momo.albedo / x
     np.testing.assert_allclose(s, s[0], rtol=1e-12)
     assert move.log_q_ratio == pytest.approx(7 * np.log(s[0]), rel=1e-12)
     zero = Caricature(Block.ALBEDO, 0.2)(np.random.default_rng(3), _state(color=np.zeros(4)))

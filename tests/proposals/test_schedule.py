@@ -43,7 +43,7 @@ def _all_leaves(proposal):
 
 
 def _snapshot(p):
-    return (p.momo.shape.copy(), p.momo.color.copy(), p.momo.expression.copy(),
+    return (p.momo.shape.copy(), p.momo.albedo.copy(), p.momo.expression.copy(),
             p.environment_map.coefficients.copy())
 
 

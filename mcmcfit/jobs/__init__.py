@@ -1,0 +1,13 @@
+"""Fits as files: an image (+ landmarks) on disk in, a complete result folder out.
+
+Modules
+-------
+model_spec
+    A model named on the command line: a path or ``default``.
+fit_job
+    :func:`~mcmcfit.jobs.fit_job.run_fit_job`: read, fit, write atomically.
+synthetic_case
+    A face of a model with known truth, rendered over a textured background (the demo).
+
+Imports :mod:`mcmcfit.fitting` and :mod:`mcmcfit.outputs` (and what they import).
+"""

@@ -1,0 +1,10 @@
+"""What the data-driven proposals read from the accepted render state.
+
+:mod:`~mcmcfit.proposal_data.albedo` linearises the render in the albedo
+coefficients (the albedo conditional's system); :mod:`~mcmcfit.proposal_data.light`
+gathers normals, albedo and target colours for the SH light solve. Both are
+functions of the proposal's explicit input (the accepted state and its render),
+cached on the versions of the parameter blocks they read.
+
+Imports :mod:`albedo_model` and :mod:`proposals` only.
+"""

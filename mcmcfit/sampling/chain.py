@@ -1,0 +1,347 @@
+"""Recording chains: per-step logs, thinned samples, best samples, and the chain HDF5 file.
+
+A :class:`ChainRecorder` is the sampler's callback; it fills a
+:class:`ChainRecord`:
+
+* per step (after the step): ``log_prior``, ``log_lik_lm``, ``log_lik_img``,
+  the proposal (index into ``proposal_names``), ``accepted`` and
+  ``rejected_by`` (0 accepted, 1 landmarks, 2 prior, 3 image);
+* every ``thin``-th step: the parameter vector (:class:`~mcmcfit.sampling.param_vector.ParamLayout`);
+* the best states by image likelihood (the reference's result), by landmark
+  likelihood (the reference's ``lminit``) and by log posterior, over every
+  step including the initial state (step -1).
+
+:func:`write_chains_h5` writes records with ``emcee``'s vocabulary in mind
+(``get_chain``-style arrays: samples (n, d) per chain and stage).
+
+This module imports :mod:`albedo_model` (params, rps I/O, atomic writes) and
+:mod:`mcmcfit.sampling.kernel`, :mod:`mcmcfit.sampling.param_vector`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from albedo_model.errors import FormatError
+from albedo_model.io.atomic import atomic_path
+from albedo_model.io.rps import format_rps_text, parse_rps_text
+from albedo_model.params import RenderParameter
+from mcmcfit.sampling.param_vector import ParamLayout
+from mcmcfit.sampling.kernel import ChainState, StepInfo
+
+__all__ = [
+    "CHAIN_FILE_VERSION",
+    "BestSample",
+    "ChainRecord",
+    "ChainRecorder",
+    "ChainResult",
+    "ProposalStats",
+    "read_chains_h5",
+    "write_chains_h5",
+]
+
+CHAIN_FILE_VERSION = "1"
+
+
+class BestSample(NamedTuple):
+    """A remembered state: parameters, the step after which it was current, its log densities."""
+
+    params: RenderParameter
+    step: int
+    log_prior: float
+    log_lik_lm: float
+    log_lik_img: float
+
+    @property
+    def log_posterior(self) -> float:
+        return self.log_prior + self.log_lik_lm + self.log_lik_img
+
+
+class ProposalStats(NamedTuple):
+    """Counts for one proposal: proposed, accepted, and rejected by each stage."""
+
+    proposed: int
+    accepted: int
+    rejected_landmarks: int
+    rejected_prior: int
+    rejected_image: int
+
+    @property
+    def acceptance_rate(self) -> float:
+        return self.accepted / self.proposed if self.proposed else float("nan")
+
+
+def _best(state: ChainState, step: int) -> BestSample:
+    return BestSample(state.params, step, state.log_prior, state.log_lik_lm, state.log_lik_img)
+
+
+@dataclass
+class ChainRecord:
+    """One stage of one chain.
+
+    Attributes
+    ----------
+    stage : {"landmarks", "image"}
+    sampler : {"mh", "emcee"}
+    thin : int
+    steps : int
+        Steps run (per-step arrays have this length; 0 for emcee).
+    sample_step : (n,) int64
+        Step index after which each kept sample was current.
+    samples : (n, d) float64
+        Parameter vectors (``layout``).
+    log_prior, log_lik_lm, log_lik_img : (steps,) float64
+        Of the state after each step (for emcee: of each kept sample, (n,)).
+    proposal : (steps,) int32, index into ``proposal_names``
+    accepted : (steps,) bool
+    rejected_by : (steps,) int8
+    best_image, best_landmarks, best_posterior : BestSample
+    seconds : float
+        Wall time of the stage.
+    extra : dict
+        Sampler-specific extras (emcee: walkers, acceptance fraction).
+    step_seconds : (steps,) float32
+        Wall time of each step (proposal, evaluation and recording); empty when
+        not measured (emcee, older files).
+    """
+
+    stage: str
+    sampler: str
+    thin: int
+    steps: int
+    layout: ParamLayout
+    sample_step: np.ndarray
+    samples: np.ndarray
+    log_prior: np.ndarray
+    log_lik_lm: np.ndarray
+    log_lik_img: np.ndarray
+    proposal: np.ndarray
+    proposal_names: tuple[str, ...]
+    accepted: np.ndarray
+    rejected_by: np.ndarray
+    best_image: BestSample
+    best_landmarks: BestSample
+    best_posterior: BestSample
+    seconds: float = 0.0
+    extra: dict = field(default_factory=dict)
+    step_seconds: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
+
+    @property
+    def log_posterior(self) -> np.ndarray:
+        """Per-step log posterior ``log p + l_lm + l_img``."""
+        return self.log_prior + self.log_lik_lm + self.log_lik_img
+
+    @property
+    def acceptance_rate(self) -> float:
+        """Fraction of accepted steps (emcee: the mean acceptance fraction)."""
+        if self.steps == 0:
+            return float(self.extra.get("acceptance_fraction", float("nan")))
+        return float(np.mean(self.accepted))
+
+    def acceptance(self) -> dict[str, ProposalStats]:
+        """Per-proposal counts over every step, by proposal name."""
+        out = {}
+        for i, name in enumerate(self.proposal_names):
+            sel = self.proposal == i
+            rb = self.rejected_by[sel]
+            out[name] = ProposalStats(int(sel.sum()), int((rb == 0).sum()), int((rb == 1).sum()),
+                                      int((rb == 2).sum()), int((rb == 3).sum()))
+        return out
+
+    def time_by_proposal(self) -> dict[str, float]:
+        """Seconds spent in the steps of each proposal, by name (empty when not measured)."""
+        if self.step_seconds.shape[0] != self.steps or self.steps == 0:
+            return {}
+        t = np.bincount(self.proposal, weights=self.step_seconds.astype(np.float64),
+                        minlength=len(self.proposal_names))
+        return {name: float(t[i]) for i, name in enumerate(self.proposal_names)}
+
+    def sample_log_posterior(self) -> np.ndarray:
+        """Log posterior of each kept sample, (n,)."""
+        if self.steps == 0:
+            return self.log_posterior
+        return self.log_posterior[self.sample_step]
+
+
+class ChainRecorder:
+    """Sampler callback filling a :class:`ChainRecord` (preallocated arrays).
+
+    Parameters
+    ----------
+    layout : ParamLayout
+    n_steps : int
+    thin : int
+        Keep the state after every ``thin``-th step (steps thin-1, 2 thin-1, ...).
+    initial : ChainState
+        The state before the first step (a candidate for the best samples).
+    stage : {"landmarks", "image"}
+    """
+
+    def __init__(self, layout: ParamLayout, n_steps: int, thin: int, initial: ChainState, *,
+                 stage: str):
+        self.layout, self.n, self.thin, self.stage = layout, int(n_steps), max(1, int(thin)), stage
+        n_kept = self.n // self.thin
+        self._samples = np.empty((n_kept, layout.size))
+        self._sample_step = np.empty(n_kept, np.int64)
+        self._k = 0
+        self._lp, self._lm, self._li = (np.empty(self.n) for _ in range(3))
+        self._prop = np.empty(self.n, np.int32)
+        self._acc = np.empty(self.n, bool)
+        self._rej = np.empty(self.n, np.int8)
+        self._names: dict[str, int] = {}
+        self.best_image = self.best_landmarks = self.best_posterior = _best(initial, -1)
+        self.steps_done = 0
+        self._dt = np.zeros(self.n, np.float32)
+        self._last = time.perf_counter()
+
+    def __call__(self, i: int, state: ChainState, info: StepInfo) -> None:
+        """Record step ``i`` (0-based) with the state after it."""
+        now = time.perf_counter()
+        self._dt[i], self._last = now - self._last, now
+        self._lp[i], self._lm[i], self._li[i] = state.log_prior, state.log_lik_lm, state.log_lik_img
+        idx = self._names.setdefault(info.proposal, len(self._names))
+        self._prop[i], self._acc[i], self._rej[i] = idx, info.accepted, info.rejected_by
+        if info.accepted:
+            if state.log_lik_img > self.best_image.log_lik_img:
+                self.best_image = _best(state, i)
+            if state.log_lik_lm > self.best_landmarks.log_lik_lm:
+                self.best_landmarks = _best(state, i)
+            if state.log_posterior > self.best_posterior.log_posterior:
+                self.best_posterior = _best(state, i)
+        if (i + 1) % self.thin == 0 and self._k < self._samples.shape[0]:
+            self._samples[self._k] = self.layout.to_vector(state.params)
+            self._sample_step[self._k] = i
+            self._k += 1
+        self.steps_done = i + 1
+
+    def record(self, seconds: float = 0.0) -> ChainRecord:
+        """The record of the steps done so far."""
+        n, k = self.steps_done, self._k
+        return ChainRecord(
+            self.stage, "mh", self.thin, n, self.layout, self._sample_step[:k].copy(),
+            self._samples[:k].copy(), self._lp[:n].copy(), self._lm[:n].copy(),
+            self._li[:n].copy(), self._prop[:n].copy(), tuple(self._names), self._acc[:n].copy(),
+            self._rej[:n].copy(), self.best_image, self.best_landmarks, self.best_posterior,
+            float(seconds), {}, self._dt[:n].copy())
+
+
+@dataclass
+class ChainResult:
+    """Both stages of one chain, with its seed (``SeedSequence`` entropy and spawn key).
+
+    ``stage1`` is None when the landmark stage was skipped, ``stage2`` when the
+    image stage was.
+    """
+
+    index: int
+    seed_entropy: int
+    spawn_key: tuple[int, ...]
+    stage1: ChainRecord | None
+    stage2: ChainRecord | None
+
+
+def _write_record(g, rec: ChainRecord) -> None:
+    g.attrs.update(stage=rec.stage, sampler=rec.sampler, thin=rec.thin, steps=rec.steps,
+                   seconds=rec.seconds, extra=json.dumps(rec.extra, default=float))
+    for name in ("sample_step", "samples", "log_prior", "log_lik_lm", "log_lik_img", "proposal",
+                 "accepted", "rejected_by", "step_seconds"):
+        g.create_dataset(name, data=getattr(rec, name), compression="gzip", compression_opts=4)
+    g.create_dataset("proposal_names", data=np.array(rec.proposal_names, dtype=object),
+                     dtype=_str_dtype())
+    for which in ("best_image", "best_landmarks", "best_posterior"):
+        b: BestSample = getattr(rec, which)
+        ds = g.create_dataset(which, data=rec.layout.to_vector(b.params))
+        ds.attrs.update(step=b.step, log_prior=b.log_prior, log_lik_lm=b.log_lik_lm,
+                        log_lik_img=b.log_lik_img)
+
+
+def _str_dtype():
+    import h5py
+
+    return h5py.string_dtype("utf-8")
+
+
+def write_chains_h5(path: str | os.PathLike, chains: list[ChainResult], layout: ParamLayout,
+                    template: RenderParameter, *, attrs: dict | None = None) -> None:
+    """Write chain records to HDF5 (atomically).
+
+    Layout: root attrs ``version``, ``template_rps`` (the fixed fields, .rps V4
+    JSON) and ``attrs`` (e.g. ``config`` JSON, ``seed``); ``/parameter_names``;
+    ``/chain_<i>/{stage1,stage2}/`` with the :class:`ChainRecord` arrays and
+    ``best_*`` vectors (attrs: step and log densities).
+    """
+    import h5py
+
+    with atomic_path(path, suffix=".h5") as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["version"] = CHAIN_FILE_VERSION
+        f.attrs["template_rps"] = format_rps_text(template)
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v
+        f.create_dataset("parameter_names", data=np.array(layout.names, dtype=object),
+                         dtype=_str_dtype())
+        for c in chains:
+            g = f.create_group(f"chain_{c.index:03d}")
+            g.attrs.update(seed_entropy=str(c.seed_entropy), spawn_key=list(c.spawn_key))
+            if c.stage1 is not None:
+                _write_record(g.create_group("stage1"), c.stage1)
+            if c.stage2 is not None:
+                _write_record(g.create_group("stage2"), c.stage2)
+
+
+def _read_record(g, layout: ParamLayout, template: RenderParameter) -> ChainRecord:
+    def best(name: str) -> BestSample:
+        ds = g[name]
+        a = ds.attrs
+        return BestSample(layout.from_vector(ds[()], template), int(a["step"]),
+                          float(a["log_prior"]), float(a["log_lik_lm"]), float(a["log_lik_img"]))
+
+    names = tuple(s.decode() if isinstance(s, bytes) else str(s) for s in g["proposal_names"][()])
+    return ChainRecord(
+        str(g.attrs["stage"]), str(g.attrs["sampler"]), int(g.attrs["thin"]),
+        int(g.attrs["steps"]), layout, g["sample_step"][()], g["samples"][()],
+        g["log_prior"][()], g["log_lik_lm"][()], g["log_lik_img"][()], g["proposal"][()], names,
+        g["accepted"][()], g["rejected_by"][()], best("best_image"), best("best_landmarks"),
+        best("best_posterior"), float(g.attrs["seconds"]), json.loads(g.attrs["extra"]),
+        g["step_seconds"][()] if "step_seconds" in g else np.zeros(0, np.float32))
+
+
+def read_chains_h5(path: str | os.PathLike) -> tuple[list[ChainResult], ParamLayout, dict]:
+    """Read a file of :func:`write_chains_h5`: ``(chains, layout, root attrs)``.
+
+    Raises
+    ------
+    FormatError
+        Not a chain file, or an unknown version.
+    """
+    import h5py
+
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise FormatError(path, f"not an HDF5 file ({exc})") from None
+    with f:
+        if f.attrs.get("version") != CHAIN_FILE_VERSION or "parameter_names" not in f:
+            raise FormatError(path, "not an mcmcfit chain file (version 1)")
+        template = parse_rps_text(str(f.attrs["template_rps"]), source=path)
+        layout = ParamLayout.for_params(template)
+        names = tuple(s.decode() if isinstance(s, bytes) else str(s)
+                      for s in f["parameter_names"][()])
+        if names != layout.names:
+            raise FormatError(path, "parameter names do not match the stored template")
+        chains = []
+        for key in sorted(k for k in f if k.startswith("chain_")):
+            g = f[key]
+            chains.append(ChainResult(
+                int(key.split("_")[1]), int(g.attrs["seed_entropy"]),
+                tuple(int(x) for x in g.attrs["spawn_key"]),
+                _read_record(g["stage1"], layout, template) if "stage1" in g else None,
+                _read_record(g["stage2"], layout, template) if "stage2" in g else None))
+        attrs = {k: v for k, v in f.attrs.items() if k not in ("version", "template_rps")}
+    return chains, layout, attrs
+

@@ -1,0 +1,85 @@
+"""The face posterior as a sampler :class:`~mcmcfit.sampling.kernel.Target`: renderer + likelihoods + prior.
+
+Renders with :class:`albedo_model.render.renderer.Renderer` (linear output, as
+compared), evaluates :class:`~mcmcfit.targets.image.ImageLikelihood` on the
+shader output (fused with the shading in one ``jit`` through
+``Renderer.compose`` when the renderer offers it), the landmark (or face-box)
+likelihood on the parameters, and the prior. It remembers the accepted render state (:attr:`FaceTarget.current`)
+for the SH light solver's data.
+
+This module imports :mod:`albedo_model` and :mod:`mcmcfit`.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+from albedo_model.params import Block, RenderParameter
+from albedo_model.render.renderer import Renderer, RenderState
+from mcmcfit.targets.image import ImageLikelihood
+from mcmcfit.targets.priors import LogPrior
+
+__all__ = ["FaceTarget", "LandmarkFactor"]
+
+
+class LandmarkFactor(Protocol):
+    """Anything with ``log_lik(params) -> float`` (landmarks or a face box)."""
+
+    def log_lik(self, params: RenderParameter) -> float:
+        ...
+
+
+class FaceTarget:
+    """Posterior factors of one fit.
+
+    Parameters
+    ----------
+    renderer : Renderer
+        Must render linear colours (``gamma=False``).
+    image_likelihood : ImageLikelihood or None
+        None for a landmark-only target.
+    landmarks : LandmarkFactor or None
+    prior : LogPrior
+    """
+
+    def __init__(self, renderer: Renderer, image_likelihood: ImageLikelihood | None,
+                 landmarks: LandmarkFactor | None, prior: LogPrior):
+        if renderer.gamma:
+            raise ValueError("FaceTarget compares linear colours: use a Renderer with gamma=False")
+        self.renderer = renderer
+        self.image_likelihood = image_likelihood
+        self.landmarks = landmarks
+        self.prior = prior
+        self.current: RenderState | None = None
+        self._fused = None
+        if image_likelihood is not None and hasattr(renderer, "compose"):
+            self._fused = renderer.compose(image_likelihood.pixel_set_fn, pixel_set=True)
+
+    def log_prior(self, params: RenderParameter) -> float:
+        return self.prior(params)
+
+    def log_lik_landmarks(self, params: RenderParameter) -> float:
+        return 0.0 if self.landmarks is None else float(self.landmarks.log_lik(params))
+
+    def init_render(self, params: RenderParameter) -> RenderState:
+        self.current = self.renderer.init_state(params)
+        return self.current
+
+    def render(self, render_state: RenderState, params: RenderParameter,
+               touched: Block) -> RenderState:
+        return self.renderer.update(render_state, params, touched)
+
+    def log_lik_image(self, render_state: RenderState) -> float:
+        lik = self.image_likelihood
+        if lik is None:
+            return 0.0
+        if self._fused is not None:
+            return lik.finish(*self._fused(render_state, *lik.device_args()))
+        return lik(self.renderer.shade(render_state))
+
+    def accept(self, render_state: RenderState) -> RenderState:
+        self.current = self.renderer.accept(render_state)
+        return self.current
+
+    def reject(self, render_state: RenderState) -> None:
+        self.renderer.reject()

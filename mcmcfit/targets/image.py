@@ -1,0 +1,251 @@
+"""The target photograph for the image likelihood: linearisation, background, evaluation.
+
+Colour space (one choice, used everywhere in mcmcfit): the model is shaded in
+**linear sRGB** and compared there. Targets are 8-bit sRGB photographs read as
+value/255; they are linearised with AlbedoMM's pure power, ``I_lin = I^2.2``
+(not the piecewise sRGB curve), before comparison, for the background
+histogram (built from the linearised target pixels, so that foreground and
+background are densities of the same variable) and for the SH light solver.
+The pixel sigma (0.043 by default) is therefore in linear units.
+
+Background: the reference scores each face pixel against the raw colour
+histogram of the target, ``log(count / total) + 3 log B``. Where the face's own
+colours pile up (the face is a large part of the image and its colours are
+concentrated), that density exceeds the Gaussian foreground's peak
+``(2 pi)^(-3/2) sigma^-3`` (797 at sigma = 0.043, reached by one bin holding 5 %
+of the pixels), so even a perfectly rendered face pixel scores below
+background and the posterior prefers faces that are too small. With
+``smooth_sigma`` the histogram is convolved with the pixel noise: a density of
+the same noisy colour as the foreground, which never exceeds its peak
+(:meth:`~mcmcfit.targets.background.ColourHistogram.smoothed_log_density`); fits
+use it by default (:attr:`mcmcfit.fitting.config.FitConfig.background`).
+
+This module imports :mod:`albedo_model` and :mod:`mcmcfit.targets.likelihoods`,
+:mod:`mcmcfit.targets.background`.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from albedo_model.errors import InputError
+from albedo_model.shading.image_formation import GAMMA, Shaded
+from mcmcfit.targets.background import ColourHistogram, colour_histogram
+from mcmcfit.targets.likelihoods import (
+    ImageArrays,
+    collective_terms,
+    finish_collective,
+    finish_independent,
+    finish_trimmed,
+    independent_terms,
+    trimmed_terms,
+)
+
+__all__ = [
+    "IMAGE_LIKELIHOODS",
+    "ImageLikelihood",
+    "ImageTarget",
+    "linearise",
+    "prepare_image_target",
+]
+
+#: Kinds of image likelihood :class:`ImageLikelihood` evaluates.
+IMAGE_LIKELIHOODS = ("independent", "collective", "trimmed")
+
+
+def linearise(image: np.ndarray) -> np.ndarray:
+    """Pure-power linearisation ``x^2.2`` of an image in [0, 1] (clipped; 0 stays 0).
+
+    Parameters
+    ----------
+    image : (..., 3) float array, gamma-encoded (value/255 for 8-bit files)
+
+    Returns
+    -------
+    (..., 3) float64 linear RGB in [0, 1]
+    """
+    x = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
+    with np.errstate(divide="ignore"):
+        return np.where(x > 0.0, np.exp(GAMMA * np.log(np.maximum(x, 1e-300))), 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class ImageTarget:
+    """A prepared target image.
+
+    Attributes
+    ----------
+    linear : (H, W, 3) float64, host
+        Linearised target.
+    histogram : ColourHistogram
+        Background model, built from all pixels of ``linear``.
+    arrays : ImageArrays
+        Device copies: linear RGB planes (H, W) float32 and the background log
+        density of every pixel (H, W) float32.
+    """
+
+    linear: np.ndarray
+    histogram: ColourHistogram
+    arrays: ImageArrays
+
+    @property
+    def height(self) -> int:
+        return int(self.linear.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.linear.shape[1])
+
+
+def prepare_image_target(image: np.ndarray, *, bins: int = 25,
+                         smooth_sigma: float | None = None) -> ImageTarget:
+    """Linearise a photograph and build its background histogram.
+
+    Parameters
+    ----------
+    image : (H, W, 3) float array in [0, 1], gamma-encoded sRGB
+        (e.g. :func:`albedo_model.io.image_io.read_image`).
+    bins : int
+        Histogram bins per channel (25 in the reference).
+    smooth_sigma : float, optional
+        Convolve the histogram with the pixel noise ``N(0, smooth_sigma^2)``
+        (:meth:`ColourHistogram.smoothed_log_density`; pass the pixel model's
+        sigma). None keeps the raw piecewise-constant histogram (the reference).
+
+    Raises
+    ------
+    InputError
+        Wrong shape or non-finite values.
+    """
+    img = np.asarray(image, np.float64)
+    if img.ndim != 3 or img.shape[2] != 3 or min(img.shape[:2]) < 1:
+        raise InputError(f"target image must have shape (H, W, 3), got {img.shape}")
+    if not np.all(np.isfinite(img)):
+        raise InputError("target image contains NaN or infinite values")
+    lin = linearise(img)
+    hist = colour_histogram(lin, bins=bins)
+    bg = hist.log_density(lin) if smooth_sigma is None else \
+        hist.smoothed_log_density(lin, float(smooth_sigma))
+    arrays = ImageArrays(
+        rgb=tuple(jnp.asarray(lin[..., c], jnp.float32) for c in range(3)),
+        bg=jnp.asarray(bg, jnp.float32),
+    )
+    return ImageTarget(lin, hist, arrays)
+
+
+_DEVICE_FUNCTIONS = {"independent": independent_terms, "collective": collective_terms,
+                     "trimmed": trimmed_terms}
+
+
+def _on_pixel_set(terms):
+    """``terms`` with the pixel set as third argument, as ``Renderer.compose(pixel_set=True)``
+    calls it."""
+    def on_set(rgb, mask, pixels, *args):
+        return terms(rgb, mask, *args, pixels=pixels)
+    on_set.__name__ = f"{terms.__name__}_on_pixel_set"
+    return on_set
+
+
+# one function object per kind, so that compiled programs are shared across fits
+_PIXEL_SET_FUNCTIONS = {k: _on_pixel_set(f) for k, f in _DEVICE_FUNCTIONS.items()}
+
+
+@functools.cache
+def _jitted(kind: str):
+    return jax.jit(_DEVICE_FUNCTIONS[kind])
+
+
+@dataclass(frozen=True, eq=False)
+class ImageLikelihood:
+    """An image likelihood bound to a target: ``log_lik(shaded) -> float``.
+
+    Parameters
+    ----------
+    target : ImageTarget
+    kind : {"independent", "collective", "trimmed"}
+        Independent Gaussian pixels against the histogram background (the
+        reference's fit), the collective CLT likelihood, or the independent one
+        over the best ``trim_fraction`` of the face pixels.
+    sigma : float
+        Per-channel colour noise (linear units) of the Gaussian pixel model; the
+        collective likelihood uses ``sqrt(3) sigma`` as its RMS distance.
+    trim_fraction : float in (0, 1]
+    relative_variance : float
+        Of the collective likelihood (2/3: Gaussian per-channel noise).
+    temperature : float
+        The log likelihood is divided by it (1: the plain likelihood). Pixels
+        are not independent (model errors are smooth over the face), so the
+        plain product is overconfident; T > 1 counts about N / T effective pixels.
+    """
+
+    target: ImageTarget
+    kind: str = "independent"
+    sigma: float = 0.043
+    trim_fraction: float = 0.9
+    relative_variance: float = 2.0 / 3.0
+    temperature: float = 1.0
+    _fn: object = field(init=False, repr=False)
+    _args: tuple = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.kind not in IMAGE_LIKELIHOODS:
+            raise InputError(f"image likelihood must be one of {IMAGE_LIKELIHOODS}, "
+                             f"got {self.kind!r}")
+        if not (math.isfinite(self.sigma) and self.sigma > 0):
+            raise InputError(f"pixel sigma must be > 0, got {self.sigma!r}")
+        if not 0.0 < self.trim_fraction <= 1.0:
+            raise InputError(f"trim fraction must be in (0, 1], got {self.trim_fraction!r}")
+        if not (math.isfinite(self.temperature) and self.temperature >= 1.0):
+            raise InputError(f"likelihood temperature must be >= 1, got {self.temperature!r}")
+        object.__setattr__(self, "_fn", _jitted(self.kind))
+        # one device scalar for every call (a fresh jnp.float32 per step is a host->device copy)
+        args = (self.target.arrays,) if self.kind == "collective" else (
+            self.target.arrays, jnp.float32(self.sigma))
+        object.__setattr__(self, "_args", args)
+
+    @property
+    def device_fn(self):
+        """The pure JAX function ``fn(rgb, mask, *device_args())`` of this kind.
+
+        Suitable for fusing into the shading ``jit``
+        (:meth:`albedo_model.render.renderer.Renderer.compose`); :meth:`finish` turns its
+        result into the log likelihood.
+        """
+        return _DEVICE_FUNCTIONS[self.kind]
+
+    @property
+    def pixel_set_fn(self):
+        """:attr:`device_fn` as ``fn(rgb, mask, pixels, *device_args())`` on a renderer's
+        pixel set (:meth:`albedo_model.render.renderer.Renderer.compose` with ``pixel_set=True``:
+        the per-pixel work follows the face's size, not the image's)."""
+        return _PIXEL_SET_FUNCTIONS[self.kind]
+
+    def device_args(self) -> tuple:
+        """The arguments after ``(rgb, mask)`` of :attr:`device_fn`."""
+        return self._args
+
+    def terms(self, rgb, mask):
+        """Device partial results for the shader output (see :mod:`mcmcfit.targets.likelihoods`)."""
+        return self._fn(rgb, mask, *self.device_args())
+
+    def finish(self, rows, counts) -> float:
+        """Host float64 value from the device results (partial sums, or values and mask)."""
+        rows, counts = np.asarray(rows), np.asarray(counts)
+        if self.kind == "independent":
+            value = finish_independent(rows, counts, self.sigma)
+        elif self.kind == "collective":
+            value = finish_collective(rows, counts, math.sqrt(3.0) * self.sigma,
+                                      self.relative_variance)
+        else:
+            value = finish_trimmed(rows, counts, self.sigma, self.trim_fraction)
+        return value if self.temperature == 1.0 else value / self.temperature
+
+    def __call__(self, shaded: Shaded) -> float:
+        """Log likelihood of the target given a render (linear colours, full-image arrays)."""
+        return self.finish(*self.terms(shaded.rgb, shaded.mask))

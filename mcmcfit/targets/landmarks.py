@@ -1,0 +1,224 @@
+"""Target landmarks: model landmark positions at a state, projection, visibility, likelihood.
+
+Only landmarks that the target marks visible and that resolve to a model
+vertex take part (others are listed in :attr:`LandmarkTarget.unknown`).
+
+Visibility of a model landmark is decided by ray casting from the camera to
+the landmark on the model's **mean shape** placed with the state's pose and
+camera (a second, fixed Embree scene). It is then a function of the
+parameters alone (not of what the renderer happens to hold), so the landmark
+factor is a proper density and the landmark filter an exact MH step, and it
+needs no ray cast of the proposed geometry before the filter. It differs from
+the instance's own occlusion only where a shape change moves a landmark
+across an occluding contour.
+
+A hidden landmark (occluded, behind the camera, or not projectable) that the
+target marks visible scores ``log(eps) - log(W H)`` instead of the Gaussian:
+an annotation error (probability ``eps``, default 0.05, of marking a hidden
+point visible) placed uniformly over the image. The factor is then a
+likelihood of the click *and* its visibility flag for every state, and it
+neither rewards hiding landmarks (dropping them would: every Gaussian term is
+a negative log density) nor leaves a plateau of "everything hidden" states
+(the face turned away) nearly as likely as a mediocre fit. See
+:func:`mcmcfit.targets.likelihoods.landmark_log_lik`. Landmarks projecting outside the
+image keep the Gaussian term.
+
+This module imports :mod:`albedo_model` and :mod:`mcmcfit.targets.likelihoods`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+from albedo_model.camera import eye_position_model, project, towards_camera_model
+from albedo_model.errors import InputError
+from albedo_model.model import MorphableModel
+from albedo_model.params import ImageSize, RenderParameter
+from albedo_model.render.raycast import RayCaster, visible_points
+from mcmcfit.targets.likelihoods import FACE_BOX_LANDMARKS, face_box_log_lik, landmark_log_lik
+
+__all__ = ["MIN_LANDMARKS", "FaceBoxTarget", "LandmarkGeometry", "LandmarkTarget",
+           "target_landmarks"]
+
+
+#: Fewest target landmarks known to the model that a fit accepts (a similarity
+#: pose guess needs two; a third constrains the rotation).
+MIN_LANDMARKS = 3
+
+
+def target_landmarks(landmarks) -> dict[str, np.ndarray]:
+    """Visible 2-D target landmarks as ``{name: (2,) float64 pixels}``.
+
+    Accepts a list of :class:`~albedo_model.io.tlms.Landmark` (occluded ones are
+    dropped; 3-D ones are rejected) or a mapping ``name -> (x, y)``.
+    """
+    out: dict[str, np.ndarray] = {}
+    if isinstance(landmarks, Mapping):
+        items: Iterable = ((str(k), v, True) for k, v in landmarks.items())
+    else:
+        items = ((lm.name, lm.point, lm.visible) for lm in landmarks)
+    for name, point, visible in items:
+        if not visible:
+            continue
+        p = np.asarray(point, np.float64).reshape(-1)
+        if p.shape != (2,) or not np.all(np.isfinite(p)):
+            raise InputError(f"landmark {name!r} must be a finite 2-D pixel position, got {point!r}")
+        if name in out:
+            raise InputError(f"landmark {name!r} occurs twice")
+        out[name] = p
+    return out
+
+
+class LandmarkGeometry:
+    """Model landmark points at a state's shape, and their visibility from the camera.
+
+    Parameters
+    ----------
+    model : MorphableModel
+    threads : int
+        Ray-casting threads of the visibility scene.
+    """
+
+    def __init__(self, model: MorphableModel, *, threads: int = 1):
+        self.model = model
+        self._vertex = dict(model.landmark_vertices)
+        self._rows: dict[tuple[str, ...], tuple] = {}
+        mean = model.shape_instance()
+        self._mean_points = {n: mean[i] for n, i in self._vertex.items()}
+        self._caster = RayCaster(np.ascontiguousarray(mean, np.float32), model.triangles,
+                                 threads=threads, update="rebuild")
+
+    @property
+    def names(self) -> list[str]:
+        """Model landmarks that sit on a vertex."""
+        return list(self._vertex)
+
+    def _stacked(self, names: tuple[str, ...]):
+        """Mean (k, 3) and scaled bases (k, 3, ks), (k, 3, ke) of the landmark vertices."""
+        if names not in self._rows:
+            rows = np.concatenate([np.arange(3 * self._vertex[n], 3 * self._vertex[n] + 3)
+                                   for n in names]) if names else np.zeros(0, int)
+            s, e = self.model.shape, self.model.expression
+            mean = s.mean[rows].astype(np.float64)
+            eb = None
+            if e is not None:
+                mean = mean + e.mean[rows]
+                eb = e.scaled_basis[rows].astype(np.float64)
+            self._rows[names] = (mean, s.scaled_basis[rows].astype(np.float64), eb)
+        return self._rows[names]
+
+    def points(self, names: list[str], params: RenderParameter) -> np.ndarray:
+        """Model-frame positions (k, 3) float64 (mm) at the shape and expression of ``params``."""
+        mean, sb, eb = self._stacked(tuple(names))
+        a = np.asarray(params.momo.shape, np.float64)
+        b = np.asarray(params.momo.expression, np.float64)
+        p = mean + sb[:, : a.shape[0]] @ a
+        if eb is not None and b.shape[0]:
+            p = p + eb[:, : b.shape[0]] @ b
+        return p.reshape(-1, 3)
+
+    def point(self, name: str, params: RenderParameter) -> np.ndarray:
+        """One landmark's model-frame position (3,): the proposals' ``landmark_point``."""
+        if name not in self._vertex:
+            raise InputError(f"the model has no landmark {name!r} on a vertex")
+        return self.points([name], params)[0]
+
+    def visible(self, names: list[str], params: RenderParameter) -> np.ndarray:
+        """(k,) bool: the mean-shape landmark has a free line of sight to the camera."""
+        pts = np.array([self._mean_points[n] for n in names]).reshape(-1, 3)
+        p = params
+        with np.errstate(all="ignore"):
+            if p.camera.orthographic:
+                return visible_points(pts, None, self._caster,
+                                      direction=towards_camera_model(p.pose, p.view))
+            return visible_points(pts, eye_position_model(p.pose, p.view), self._caster)
+
+
+class LandmarkTarget:
+    """The landmark likelihood of a set of clicked 2-D landmarks.
+
+    Parameters
+    ----------
+    geometry : LandmarkGeometry
+    landmarks : list of Landmark or mapping name -> (x, y)
+        Target pixels (x right, y down); occluded (visible=False) ones are ignored.
+    sigma : float
+        Landmark noise in pixels (4 in the reference).
+    image_size : ImageSize
+        Sets the hidden-landmark density ``log(hidden_probability) - log(W H)``.
+    hidden_probability : float in (0, 1]
+        Probability that a landmark hidden in the model is nevertheless clicked
+        as visible (an annotation or model error).
+
+    Raises
+    ------
+    InputError
+        Fewer than :data:`MIN_LANDMARKS` target landmarks are model landmarks.
+    """
+
+    def __init__(self, geometry: LandmarkGeometry, landmarks, *, sigma: float = 4.0,
+                 image_size: ImageSize, hidden_probability: float = 0.05):
+        if not (math.isfinite(sigma) and sigma > 0):
+            raise InputError(f"landmark sigma must be > 0, got {sigma!r}")
+        if not 0.0 < hidden_probability <= 1.0:
+            raise InputError(f"hidden-landmark probability must be in (0, 1], "
+                             f"got {hidden_probability!r}")
+        given = target_landmarks(landmarks)
+        known = set(geometry.names)
+        self.geometry = geometry
+        self.names = [n for n in given if n in known]
+        self.unknown = [n for n in given if n not in known]
+        if len(self.names) < MIN_LANDMARKS:
+            count = "none" if not self.names else f"only {len(self.names)}"
+            raise InputError(
+                f"{count} of the {len(given)} visible target landmarks is a landmark of the "
+                f"model; a fit needs at least {MIN_LANDMARKS}"
+                + (f" (unknown: {', '.join(self.unknown[:5])})" if self.unknown else ""))
+        self.observed = np.array([given[n] for n in self.names])
+        self.sigma = float(sigma)
+        self.hidden_log_density = (math.log(hidden_probability)
+                                   - math.log(float(image_size.width) * float(image_size.height)))
+
+    def project(self, params: RenderParameter) -> tuple[np.ndarray, np.ndarray]:
+        """Projected model landmarks (k, 2) pixels and their visibility (k,) bool."""
+        pts = self.geometry.points(self.names, params)
+        px, depth = project(pts, params.pose, params.view, params.camera, params.image_size)
+        ok = np.all(np.isfinite(px), axis=1) & (depth > 0.0) & (depth < 1.0)
+        if ok.any():
+            ok &= self.geometry.visible(self.names, params)
+        return px, ok
+
+    def log_lik(self, params: RenderParameter) -> float:
+        """Landmark log likelihood of ``params`` (see the module notes)."""
+        px, vis = self.project(params)
+        return landmark_log_lik(np.where(vis[:, None], px, 0.0), self.observed, vis, self.sigma,
+                                self.hidden_log_density)
+
+
+class FaceBoxTarget:
+    """Face-box likelihood: a box (x0, y0, x1, y1) in pixels instead of landmarks."""
+
+    def __init__(self, geometry: LandmarkGeometry, box, *, scale_log_sigma: float = 0.1,
+                 centre_sigma: float = 0.1):
+        missing = [n for n in FACE_BOX_LANDMARKS if n not in geometry.names]
+        if missing:
+            raise InputError(f"face-box likelihood needs model landmark {missing[0]!r}")
+        b = np.asarray(box, np.float64).reshape(-1)
+        if b.shape != (4,) or not (b[2] > b[0] and b[3] > b[1]):
+            raise InputError(f"face box must be (x0, y0, x1, y1) with x1 > x0, y1 > y0: {box!r}")
+        self.geometry, self.box = geometry, b
+        self.names = list(FACE_BOX_LANDMARKS)
+        self.scale_log_sigma, self.centre_sigma = float(scale_log_sigma), float(centre_sigma)
+
+    def log_lik(self, params: RenderParameter) -> float:
+        pts = self.geometry.points(self.names, params)
+        px, depth = project(pts, params.pose, params.view, params.camera, params.image_size)
+        if not (np.all(np.isfinite(px)) and np.all(depth > 0)):
+            return -math.inf
+        return face_box_log_lik(dict(zip(self.names, px)), self.box,
+                                scale_log_sigma=self.scale_log_sigma,
+                                centre_sigma=self.centre_sigma)
+

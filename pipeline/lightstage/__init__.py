@@ -1,0 +1,21 @@
+"""Lightstage processing: capture folder in, albedo model out (``mcmcfit pipeline build``).
+
+Modules
+-------
+capture_folder, io, spectral_csv
+    What ``pipeline build`` reads: the capture folder layout, meshes and photographs, spectra.
+colour
+    Camera spectral model and the calibrated colour transform RAW -> linear sRGB.
+polarisation
+    Polarised diffuse/specular separation.
+dome_shading, camera_render
+    Irradiance and specular lobe in the LED dome; ray-cast images seen by a camera.
+processing
+    One subject: polarised images -> stitched diffuse and specular albedo.
+external_scans
+    Integrating external single-view scans.
+assembly, build
+    The population stage (completion, modelling, evaluation) and the whole build.
+
+Imports :mod:`albedo_model`, :mod:`pipeline.texturing` and :mod:`pipeline.modelling`.
+"""

@@ -1,0 +1,159 @@
+"""The built-in default model: synthetic lightstage -> AlbedoMM HDF5, cached.
+
+``build_default_model`` runs the whole synthetic pipeline deterministically:
+procedural template head, Gaussian-process shape model and expression modes,
+spectral-skin subjects, symmetry-augmented PCA of diffuse and specular albedo
+(the paper's "transferred" variant: one shared coefficient vector), and returns
+a :class:`MorphableModel` whose metadata marks it synthetic. The file is written
+in the AlbedoMM layout, so it is read by the same loader as AlbedoMM/BFM files.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from albedo_model.default_model import BUILD_VERSION, default_model_path
+from albedo_model.model import MorphableModel
+from albedo_model.pca import PCAPart
+
+__all__ = ["DEFAULT_SEED", "DEFAULT_SUBJECTS", "build_default_model", "ensure_default_model"]
+
+DEFAULT_SEED = 2020
+DEFAULT_SUBJECTS = 60
+DEFAULT_RANKS = {"shape": 40, "albedo": 50}
+_STAGES = ("template head", "shape and expression model", "synthetic subjects",
+           "albedo PCA", "writing")
+
+
+def _float32(part: PCAPart) -> PCAPart:
+    return PCAPart(part.mean.astype(np.float32), part.basis.astype(np.float32),
+                   part.variance.astype(np.float32), part.noise_variance)
+
+
+def build_default_model(
+    *,
+    seed: int = DEFAULT_SEED,
+    n_subjects: int = DEFAULT_SUBJECTS,
+    shape_rank: int = DEFAULT_RANKS["shape"],
+    albedo_rank: int = DEFAULT_RANKS["albedo"],
+    progress: Callable[[str], None] | None = None,
+) -> MorphableModel:
+    """Build the synthetic default model (deterministic for a seed).
+
+    Parameters
+    ----------
+    seed : int
+        Seeds the shape model and the subjects.
+    n_subjects : int
+        Synthetic subjects; each is used twice (mirrored), so the albedo rank is
+        at most ``2 n_subjects - 1``.
+    shape_rank, albedo_rank : int
+        Ranks kept.
+    progress : callable, optional
+        Called with the name of each stage (see ``_STAGES``) as it starts.
+
+    Returns
+    -------
+    MorphableModel
+        Float32 parts, shared albedo coefficients, symmetry map, the template's
+        Basel landmarks, and metadata (``synthetic``, colour space, gamma, seed).
+    """
+    from pipeline.modelling.pca_variants import build_albedo_parts
+    from pipeline.lightstage.colour import camera_colour
+    from pipeline.synthetic.head.shape_model import build_expression_model, build_shape_model
+    from pipeline.synthetic.subjects import make_subjects
+    from pipeline.synthetic.head.template_head import build_template_head
+
+    say = progress or (lambda stage: None)
+    say(_STAGES[0])
+    head = build_template_head()
+    say(_STAGES[1])
+    shape = build_shape_model(head, rank=shape_rank, seed=seed)
+    expression = build_expression_model(head)
+    say(_STAGES[2])
+    subjects = make_subjects(head, n_subjects, seed)
+    diffuse = np.stack([s.diffuse for s in subjects])
+    specular = np.stack([s.specular for s in subjects])
+    say(_STAGES[3])
+    parts = build_albedo_parts(diffuse, specular, head.symmetry, variant="transferred",
+                               rank=albedo_rank)
+    verts = head.vertices.astype(np.float32)
+    provenance = {
+        "builder": "pipeline.synthetic.default_model", "build_version": BUILD_VERSION, "seed": seed,
+        "subjects": n_subjects, "variant": "transferred", "symmetry_augmented": True,
+        "camera_colour": camera_colour().metadata(),
+    }
+    metadata = {
+        "synthetic": "true",
+        "description": "mcmcfit built-in synthetic demonstration model (not a real face model)",
+        "colour_space": "linear sRGB",
+        "gamma": "pure power 2.2 (AlbedoMM convention)",
+        "provenance": json.dumps(provenance, sort_keys=True, default=str),
+    }
+    return MorphableModel(
+        verts, head.triangles, _float32(shape), _float32(parts.diffuse),
+        expression=_float32(expression), specular=_float32(parts.specular),
+        shared_albedo=parts.shared,
+        landmarks={name: verts[i].astype(np.float64) for name, i in head.landmarks.items()},
+        symmetry=head.symmetry, metadata=metadata,
+    )
+
+
+#: Modules whose code determines the default model's content.
+_BUILDER_MODULES = ("synthetic.default_model", "synthetic.head.template_head",
+                    "synthetic.head.head_sdf", "synthetic.head.landmarks",
+                    "synthetic.head.regions", "synthetic.head.shape_model",
+                    "synthetic.subjects", "synthetic.skin_spectral", "lightstage.colour",
+                    "modelling.pca_variants", "modelling.symmetry")
+
+
+def default_model_fingerprint() -> str:
+    """Hash of the builder's source code and settings (names the cached file)."""
+    h = hashlib.sha256(repr((BUILD_VERSION, DEFAULT_SEED, DEFAULT_SUBJECTS,
+                             sorted(DEFAULT_RANKS.items()))).encode())
+    package = Path(__file__).resolve().parents[1]  # pipeline/
+    for name in _BUILDER_MODULES:
+        h.update((package / f"{name.replace('.', '/')}.py").read_bytes())
+    return h.hexdigest()[:16]
+
+
+def ensure_default_model(*, progress: bool = True) -> Path:
+    """Path of the cached default model, building and writing it first if needed.
+
+    The file is written atomically, so concurrent first uses cannot leave a
+    partial file behind (the last complete write wins; all are identical).
+    """
+    from albedo_model.io.momo_h5 import write_model_h5
+
+    path = default_model_path(default_model_fingerprint(), must_exist=False)
+    if path.is_file():
+        return path
+    path.parent.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(_STAGES), desc="building the default model (once)", unit="stage",
+                   leave=False, file=sys.stderr)
+
+    def step(stage: str) -> None:
+        if bar is not None:
+            bar.n = _STAGES.index(stage)
+            bar.set_postfix_str(stage)
+
+    model = build_default_model(progress=step)
+    step("writing")
+    write_model_h5(model, path)
+    if bar is not None:
+        bar.close()
+        print(f"built the default model in {time.perf_counter() - start:.1f} s: {path}",
+              file=sys.stderr)
+    return path
