@@ -213,7 +213,7 @@ def project(points_model: np.ndarray, pose: Pose, view: View, camera: Camera,
 
 def pixel_window(bounds: np.ndarray, camera: Camera, image_size: ImageSize, pose: Pose,
                  view: View, margin: int = 1) -> tuple[int, int, int, int] | None:
-    """The pixels whose rays can meet a model-frame box: rows ``y0:y1``, columns ``x0:x1``.
+    """Return the pixels whose rays can meet a model-frame box: rows ``y0:y1``, columns ``x0:x1``.
 
     Parameters
     ----------
@@ -340,13 +340,13 @@ def camera_rays(camera: Camera, image_size: ImageSize, pose: Pose, view: View, *
 
 
 def eye_position_model(pose: Pose, view: View) -> np.ndarray:
-    """The camera centre (eye) in the model frame, (3,) float64."""
+    """Return the camera centre (eye) in the model frame, (3,) float64."""
     r, t, s = eye_from_model(pose, view)
     return -(r.T @ t) / s
 
 
 def towards_camera_model(pose: Pose, view: View) -> np.ndarray:
-    """Unit direction towards the camera (eye +z) in the model frame, (3,) float64.
+    """Return the unit direction towards the camera (eye +z) in the model frame, (3,) float64.
 
     For orthographic cameras this replaces the eye position in visibility tests.
     """

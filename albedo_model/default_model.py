@@ -4,6 +4,8 @@ The default model is built deterministically by
 :func:`pipeline.synthetic.default_model.ensure_default_model` on first use and cached at
 :func:`default_model_path`. This module only knows the location, so that the
 lowest package can resolve ``"default"`` without importing the builder.
+
+This module imports only :mod:`albedo_model.errors`.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ def cache_dir() -> Path:
 
 
 def default_model_path(fingerprint: str | None = None, *, must_exist: bool = True) -> Path:
-    """The cached default model file.
+    """Return the cached default model file.
 
     Parameters
     ----------

@@ -52,7 +52,7 @@ class ModelCoefficients(NamedTuple):
 
 
 def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Unit vertex normals as the renormalised mean of adjacent unit face normals.
+    """Compute unit vertex normals as the renormalised mean of adjacent unit face normals.
 
     Parameters
     ----------
@@ -125,6 +125,7 @@ class MorphableModel:
     metadata: Mapping[str, str] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        """Validate the fields and store read-only, normalised copies of them."""
         v = np.asarray(self.vertices)
         t = np.asarray(self.triangles)
         if v.ndim != 2 or v.shape[1] != 3:
@@ -164,10 +165,12 @@ class MorphableModel:
     # -- sizes ---------------------------------------------------------------
     @property
     def n_vertices(self) -> int:
+        """Number of vertices of the reference mesh."""
         return int(self.vertices.shape[0])
 
     @property
     def n_triangles(self) -> int:
+        """Number of triangles of the reference mesh."""
         return int(self.triangles.shape[0])
 
     @property
@@ -241,7 +244,7 @@ class MorphableModel:
         }
 
     def truncate(self, **ranks: int) -> MorphableModel:
-        """A copy with parts truncated, e.g. ``model.truncate(shape=50, diffuse=50)``.
+        """Return a copy with parts truncated, e.g. ``model.truncate(shape=50, diffuse=50)``.
 
         With shared albedo coefficients, truncating ``diffuse`` truncates ``specular``.
         """

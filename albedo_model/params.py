@@ -18,7 +18,7 @@ import numpy as np
 
 __all__ = [
     "Block", "Pose", "View", "Camera", "SHLight", "DirectionalLight", "ColorTransform",
-    "ImageSize", "MoMoCoefficients", "RenderParameter", "SH_N0", "default_square",
+    "ImageSize", "LUMA", "MoMoCoefficients", "RenderParameter", "SH_N0", "default_square",
     "fit_to_image_size",
 ]
 
@@ -130,6 +130,10 @@ class DirectionalLight(NamedTuple):
         return any(v != 0 for v in (*self.ambient, *self.diffuse, *self.specular))
 
 
+#: Weights of the luminance ``Y(c)`` that the colour transform's contrast mixes in.
+LUMA = (0.3, 0.59, 0.11)
+
+
 class ColorTransform(NamedTuple):
     """``c' = gain * (contrast c + (1 - contrast) Y(c)) + offset``, Y = .3r + .59g + .11b."""
 
@@ -139,7 +143,14 @@ class ColorTransform(NamedTuple):
 
     @property
     def is_identity(self) -> bool:
+        """True when the transform leaves every colour unchanged."""
         return self.gain == (1.0, 1.0, 1.0) and self.contrast == 1.0 and self.offset == (0.0, 0.0, 0.0)
+
+    def matrix(self) -> np.ndarray:
+        """Return M (3, 3) float64 with ``c' = M c + offset`` (row-vector colours: ``c @ M.T``)."""
+        kappa = float(self.contrast)
+        return np.asarray(self.gain, np.float64)[:, None] * (
+            kappa * np.eye(3) + (1.0 - kappa) * np.outer(np.ones(3), np.asarray(LUMA)))
 
 
 class ImageSize(NamedTuple):

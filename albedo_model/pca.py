@@ -52,6 +52,7 @@ class PCAPart:
     noise_variance: float = 0.0
 
     def __post_init__(self) -> None:
+        """Validate the shapes and values and store read-only arrays."""
         mean = np.asarray(self.mean)
         basis = np.asarray(self.basis)
         variance = np.asarray(self.variance)
@@ -111,7 +112,7 @@ class PCAPart:
         return c
 
     def instance(self, coefficients: np.ndarray | None = None) -> np.ndarray:
-        """Data vector for standard-normal coefficients.
+        """Return the data vector for standard-normal coefficients.
 
         Parameters
         ----------
@@ -205,7 +206,7 @@ class PCAPart:
         return self.mean.astype(np.float64) + c @ self.scaled_basis.T
 
     def truncate(self, k: int) -> PCAPart:
-        """The part restricted to its first ``k`` components."""
+        """Return the part restricted to its first ``k`` components."""
         if not 0 <= k <= self.rank:
             raise InputError(f"cannot truncate a rank-{self.rank} part to {k} components")
         return PCAPart(self.mean, self.basis[:, :k], self.variance[:k], self.noise_variance)
@@ -225,7 +226,7 @@ class PCAPart:
         return np.sqrt(var)
 
     def with_dtype(self, dtype: np.dtype) -> PCAPart:
-        """The same part with mean and basis cast to ``dtype``."""
+        """Return the same part with mean and basis cast to ``dtype``."""
         return PCAPart(
             self.mean.astype(dtype), self.basis.astype(dtype), self.variance, self.noise_variance
         )

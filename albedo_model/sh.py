@@ -51,7 +51,7 @@ MAX_SH_COEFFICIENTS = 9
 
 
 def sh_basis_components(x, y, z, n: int = 9) -> tuple:
-    """The first ``n`` basis functions of unit directions, one array per function.
+    """Evaluate the first ``n`` basis functions at unit directions, one array per function.
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """Metropolis-Hastings proposals over the fit parameters.
 
-Every proposal is a pure callable ``(rng, params) -> Move`` that declares the
+Every proposal is a pure callable ``(rng, state) -> Move`` that declares the
 parameter blocks it may change (``touches``) and returns the exact log
 transition ratio ``log q(x | x') - log q(x' | x)``. Files: ``base`` (interface,
 mixtures), ``pose``, ``coefficients``, ``colour``, ``light``, ``light_solver``,
@@ -9,7 +9,7 @@ mixtures), ``pose``, ``coefficients``, ``colour``, ``light``, ``light_solver``,
 This package imports only :mod:`albedo_model`.
 """
 
-from proposals.base import Mixture, Move, Proposal, leaves, mixture, no_move
+from proposals.base import Mixture, Move, Proposal, ProposalState, leaves, mixture, no_move
 from proposals.coefficients import Caricature, CoefficientWalk
 from proposals.color_transform import ColorTransformWalk
 from proposals.light import (
@@ -34,7 +34,7 @@ from proposals.schedule import (
 )
 
 __all__ = [
-    "Move", "Proposal", "Mixture", "mixture", "leaves", "no_move",
+    "Move", "Proposal", "ProposalState", "Mixture", "mixture", "leaves", "no_move",
     "Rotation", "Translation", "Distance", "FocalScaling", "ImageCentered",
     "CoefficientWalk", "Caricature", "ColorTransformWalk",
     "SHIntensity", "SHBandMixer", "SHPerturbation", "SHColorShift", "SHSpatial",

@@ -31,13 +31,15 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
-from albedo_model.params import Block, RenderParameter, SHLight
-from proposals.base import Move, check_scale, no_move
+from albedo_model.params import Block, SHLight
+from proposals.base import Move, ProposalState, check_scale, no_move
 
-__all__ = ["AlbedoConditional", "AlbedoData", "AlbedoSystem", "LightAlbedoExchange",
-           "albedo_system"]
+__all__ = ["SATURATION_LIMIT", "AlbedoConditional", "AlbedoData", "AlbedoSystem",
+           "LightAlbedoExchange", "albedo_system"]
 
-_SATURATED = 0.97
+#: Linear intensity at and above which a pixel counts as clipped (by the camera in a
+#: target, by the clamp at 1 in a render).
+SATURATION_LIMIT = 0.97
 
 
 class AlbedoSystem(NamedTuple):
@@ -66,6 +68,11 @@ class AlbedoSystem(NamedTuple):
         ``J^T`` times the targets, the means and the offsets over all N pixels.
     weight : float
         How many face pixels each of the N stands for (N is a subset of the face).
+    key : tuple or None
+        Identifies the system among those of one data source (the version stamps
+        of the blocks it reads, :mod:`albedo_model.render.cache_table`): the
+        proposals keep the factorisation of the conditional while it is unchanged.
+        None: never reused.
     """
 
     jac: np.ndarray
@@ -80,6 +87,7 @@ class AlbedoSystem(NamedTuple):
     jt_mean: np.ndarray
     jt_off: np.ndarray
     weight: float = 1.0
+    key: tuple | None = None
 
 
 def _normal_terms(jac, mean, target, off):
@@ -91,15 +99,30 @@ def _normal_terms(jac, mean, target, off):
 
 
 def albedo_system(jac, mean, bright, target, off, rank, n_points: int,
-                  weight: float = 1.0) -> AlbedoSystem:
-    """An :class:`AlbedoSystem` with its normal-equation terms precomputed."""
+                  weight: float = 1.0, key: tuple | None = None) -> AlbedoSystem:
+    """Return an :class:`AlbedoSystem` with its normal-equation terms precomputed."""
     return AlbedoSystem(jac, mean, bright, target, off, rank, int(n_points),
-                        *_normal_terms(jac, mean, target, off), float(weight))
+                        *_normal_terms(jac, mean, target, off), float(weight), key)
 
 
-#: ``data(params) -> AlbedoSystem or None``; the same object for states that
-#: differ only in the albedo coefficients.
-AlbedoData = Callable[[RenderParameter], "AlbedoSystem | None"]
+#: ``data(state) -> AlbedoSystem or None`` of the accepted state (its ``params`` and
+#: ``render_state``); the same ``key`` for states that differ only in the albedo
+#: coefficients.
+AlbedoData = Callable[[ProposalState], "AlbedoSystem | None"]
+
+
+class _Factorisation:
+    """The conditional's factorisation under the unscaled light, kept while its system's key is."""
+
+    __slots__ = ("key", "value")
+
+    def __init__(self) -> None:
+        self.key, self.value = None, None
+
+    def get(self, system: AlbedoSystem, sigma: float):
+        if system.key is None or system.key != self.key:
+            self.key, self.value = system.key, _conditional(system, 1.0, sigma)
+        return self.value
 
 
 def _conditional(system: AlbedoSystem, scale: float, sigma: float):
@@ -108,7 +131,7 @@ def _conditional(system: AlbedoSystem, scale: float, sigma: float):
     Pixels whose reference render reaches the clamp are dropped; their
     contribution is subtracted from the precomputed normal-equation terms.
     """
-    keep = np.all(scale * system.bright + system.off < _SATURATED, axis=1)
+    keep = np.all(scale * system.bright + system.off < SATURATION_LIMIT, axis=1)
     n_keep = int(keep.sum())
     if n_keep == 0:
         return None
@@ -158,33 +181,32 @@ class AlbedoConditional:
     ``m`` and ``Lambda`` depend only on the blocks the move keeps, so they are
     the same for the forward and the backward move, and the exact ratio is
     ``log N(c; m, Lambda^-1) - log N(c'; m, Lambda^-1)``. The factorisation is
-    cached per data object (it changes only when the geometry, light or colour
-    transform does).
+    kept while the system's ``key`` is unchanged (it changes only when the
+    geometry, light or colour transform does).
     """
 
     data: AlbedoData
     sigma: float = 0.043
     name: str = "albedo-conditional"
     touches: ClassVar[Block] = Block.ALBEDO
-    _cache: tuple = field(default=(None, None), repr=False)
+    _factorisation: _Factorisation = field(default_factory=_Factorisation, repr=False)
 
     def __post_init__(self) -> None:
         check_scale(self.sigma, "albedo conditional sigma")
 
-    def conditional(self, params: RenderParameter):
-        """``(mean (k,), cholesky factor L of Lambda (k, k))`` at ``params``, or None."""
-        system = self.data(params)
+    def conditional(self, state: ProposalState):
+        """Return ``(mean (k,), cholesky factor L of Lambda (k, k))`` at ``state``, or None."""
+        system = self.data(state)
         if system is None:
             return None
-        if self._cache[0] is not system:
-            self._cache = (system, _conditional(system, 1.0, self.sigma))
-        return self._cache[1]
+        return self._factorisation.get(system, self.sigma)
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         c = np.asarray(params.momo.albedo, np.float64)
         z = rng.normal(0.0, 1.0, c.shape[0])
-        cond = self.conditional(params) if c.shape[0] else None
+        cond = self.conditional(state) if c.shape[0] else None
         if cond is None:
             return no_move(params, self.name)
         mean, chol = cond
@@ -223,7 +245,7 @@ class LightAlbedoExchange:
     sigma: float = 0.043
     name: str = ""
     touches: ClassVar[Block] = Block.ALBEDO | Block.LIGHT
-    _cache: tuple = field(default=(None, None), repr=False)
+    _factorisation: _Factorisation = field(default_factory=_Factorisation, repr=False)
 
     def __post_init__(self) -> None:
         check_scale(self.log_sigma, "light-albedo exchange log sigma")
@@ -231,18 +253,17 @@ class LightAlbedoExchange:
         if not self.name:
             self.name = f"light-albedo-{self.log_sigma:g}"
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         c = np.asarray(params.momo.albedo, np.float64)
         log_s = rng.normal(0.0, self.log_sigma)
         z = rng.normal(0.0, 1.0, c.shape[0])
         L = np.asarray(params.environment_map.coefficients, np.float64)
-        system = self.data(params) if c.shape[0] and np.any(L) else None
+        system = self.data(state) if c.shape[0] and np.any(L) else None
         if system is None:
             return no_move(params, self.name)
-        if self._cache[0] is not system:
-            self._cache = (system, _conditional(system, 1.0, self.sigma))
-        here = self._cache[1]
+        here = self._factorisation.get(system, self.sigma)
         there = _conditional(system, float(np.exp(log_s)), self.sigma)
         if here is None or there is None:
             return no_move(params, self.name)

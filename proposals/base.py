@@ -1,8 +1,13 @@
 """The proposal interface: :class:`Move`, the :class:`Proposal` protocol and :func:`mixture`.
 
-A proposal is a pure callable ``(rng, params) -> Move``: it never mutates
-``params`` and draws all randomness from the ``numpy.random.Generator`` it is
-given. It declares the parameter blocks it may change (``touches``), and each
+A proposal is a pure callable ``(rng, state) -> Move`` (emcee's
+``propose(model, state)``): ``state`` is the chain's accepted state
+(:class:`ProposalState`: the parameters ``state.params`` and, in the image
+stage, their render ``state.render_state``). A proposal never mutates it and
+draws all randomness from the ``numpy.random.Generator`` it is given. What a
+data-driven proposal reads (the SH light solver's points, the albedo
+conditional's linear system) is computed from that explicit input, so it
+cannot belong to another state than the one the move starts from. It declares the parameter blocks it may change (``touches``), and each
 :class:`Move` reports the blocks it did change (``touched``), so that the
 sampler recomputes only the render stages that depend on them (e.g. ray
 casting only when pose, camera or geometry moved).
@@ -21,14 +26,35 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import NamedTuple, Protocol, runtime_checkable
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
 from albedo_model.errors import InputError
 from albedo_model.params import Block, RenderParameter
 
-__all__ = ["Move", "Proposal", "Mixture", "mixture", "leaves", "no_move", "check_scale"]
+__all__ = ["Move", "Proposal", "ProposalState", "Mixture", "mixture", "leaves", "no_move",
+           "check_scale"]
+
+
+class ProposalState(NamedTuple):
+    """What a proposal reads: the accepted state of the chain.
+
+    The sampler's own :class:`~mcmcfit.sampling.kernel.ChainState` has the same
+    two attributes and is passed as it is; build this one to call a proposal
+    directly.
+
+    Attributes
+    ----------
+    params : RenderParameter
+        The accepted parameters x.
+    render_state : object or None
+        The render of ``params`` (a :class:`~albedo_model.render.state.RenderState`),
+        None in the landmark stage.
+    """
+
+    params: RenderParameter
+    render_state: Any = None
 
 
 class Move(NamedTuple):
@@ -65,13 +91,13 @@ class Move(NamedTuple):
 
 @runtime_checkable
 class Proposal(Protocol):
-    """Anything with ``name``, ``touches`` and ``__call__(rng, params) -> Move``."""
+    """Anything with ``name``, ``touches`` and ``__call__(rng, state) -> Move``."""
 
     name: str
     touches: Block
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
         ...
 
 
@@ -149,9 +175,9 @@ class Mixture:
         i = int(np.searchsorted(self._cumulative, rng.random(), side="right"))
         return min(i, len(self.components) - 1)
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
-        return self.components[self.choose(rng)](rng, params)
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        return self.components[self.choose(rng)](rng, state)
 
 
 def mixture(*weighted: tuple[float, Proposal], name: str = "mixture") -> Mixture:

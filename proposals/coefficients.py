@@ -16,7 +16,7 @@ import numpy as np
 
 from albedo_model.errors import InputError
 from albedo_model.params import Block, RenderParameter
-from proposals.base import Move, check_scale, no_move
+from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = ["COEFFICIENT_FIELDS", "CoefficientWalk", "Caricature"]
 
@@ -81,8 +81,9 @@ class CoefficientWalk:
         if not self.name:
             object.__setattr__(self, "name", f"{_LABELS[self.block]}-{self.sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         fld = COEFFICIENT_FIELDS[self.block]
         x = np.asarray(getattr(params.momo, fld), np.float64)
         n = x.shape[0]
@@ -138,8 +139,9 @@ class Caricature:
         if not self.name:
             object.__setattr__(self, "name", f"{_LABELS[self.block]}-caricature-{self.sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         fld = COEFFICIENT_FIELDS[self.block]
         x = np.asarray(getattr(params.momo, fld), np.float64)
         log_s = rng.normal(0.0, self.sigma)

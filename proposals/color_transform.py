@@ -17,7 +17,7 @@ import numpy as np
 
 from albedo_model.errors import InputError
 from albedo_model.params import Block, RenderParameter
-from proposals.base import Move, check_scale, no_move
+from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = ["ColorTransformWalk"]
 
@@ -61,8 +61,9 @@ class ColorTransformWalk:
         if not self.name:
             object.__setattr__(self, "name", f"colour-{self.gain_log_sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         ct = params.color_transform
         gain = np.asarray(ct.gain, np.float64)
         contrast = float(ct.contrast)

@@ -17,7 +17,7 @@ from typing import ClassVar
 import numpy as np
 
 from albedo_model.params import Block, RenderParameter, SHLight
-from proposals.base import Move, check_scale, no_move
+from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = [
     "SHIntensity", "SHBandMixer", "SHPerturbation", "SHColorShift", "SHSpatial",
@@ -59,8 +59,9 @@ class SHIntensity:
         if not self.name:
             object.__setattr__(self, "name", f"sh-intensity-{self.log_sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         L = _light(params)
         log_s = rng.normal(0.0, self.log_sigma)
         if not np.any(L):
@@ -90,8 +91,9 @@ class SHBandMixer:
         if not self.name:
             object.__setattr__(self, "name", f"sh-bands-{self.log_sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         L = _light(params)
         k = L.shape[0]
         n_bands = int(np.ceil(np.sqrt(k))) if k else 0
@@ -145,8 +147,9 @@ class SHPerturbation:
             tag = "sh-perturb-fixed" if self.fix_energy else "sh-perturb"
             object.__setattr__(self, "name", f"{tag}-{self.sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         L = _light(params)
         L_new = L + rng.normal(0.0, self.sigma, L.shape)
         if self.fix_energy:
@@ -191,8 +194,9 @@ class SHColorShift:
         if not self.name:
             object.__setattr__(self, "name", f"sh-colour-{self.sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         L = _light(params)
         delta = rng.normal(0.0, self.sigma, 3)
         y = L + delta
@@ -223,8 +227,9 @@ class SHSpatial:
         if not self.name:
             object.__setattr__(self, "name", f"sh-spatial-{self.sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         L = _light(params)
         if L.shape[0] == 0:
             return no_move(params, self.name)
@@ -251,8 +256,9 @@ class SpecularExponentScaling:
         if not self.name:
             object.__setattr__(self, "name", f"specular-exponent-{self.log_sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         eps = rng.normal(0.0, self.log_sigma)
         e = float(params.specular_exponent)
         if e == 0.0:

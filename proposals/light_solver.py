@@ -19,14 +19,15 @@ from typing import ClassVar
 import numpy as np
 
 from albedo_model.errors import InputError
-from albedo_model.params import Block, RenderParameter, SHLight
+from albedo_model.params import Block, SHLight
 from albedo_model.sh import LAMBERT_FACTORS, MAX_SH_COEFFICIENTS, sh_basis
-from proposals.base import Move, check_scale, no_move
+from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = ["solve_sh_light", "SHLightSolver", "LightData"]
 
-#: ``data(params) -> (normals (P, 3), albedo (P, 3), target (P, 3))``; see :class:`SHLightSolver`.
-LightData = Callable[[RenderParameter], tuple[np.ndarray, np.ndarray, np.ndarray]]
+#: ``data(state) -> (normals (P, 3), albedo (P, 3), target (P, 3))`` of the accepted state;
+#: see :class:`SHLightSolver`.
+LightData = Callable[[ProposalState], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 def solve_sh_light(normals: np.ndarray, albedo: np.ndarray, target: np.ndarray, *,
@@ -101,9 +102,9 @@ class SHLightSolver:
 
     Parameters
     ----------
-    data : callable ``(RenderParameter) -> (normals, albedo, target)``
-        Per-point arrays (P, 3) each, as in :func:`solve_sh_light`, computed by
-        the sampler from the current state. They must not depend on the light
+    data : callable ``(ProposalState) -> (normals, albedo, target)``
+        Per-point arrays (P, 3) each, as in :func:`solve_sh_light`, computed
+        from the accepted state the move starts from. They must not depend on the light
         (they may depend on geometry, pose, camera, albedo and colour transform).
     sigma : float
         Standard deviation of the draw around mu, per coefficient.
@@ -134,19 +135,20 @@ class SHLightSolver:
         check_scale(self.sigma, "SH solver sigma")
         check_scale(self.ridge, "ridge", allow_zero=True)
 
-    def mean(self, params: RenderParameter) -> np.ndarray | None:
-        """The least-squares light mu (9, 3) for ``params``, or None without data points."""
-        normals, albedo, target = self.data(params)
+    def mean(self, state: ProposalState) -> np.ndarray | None:
+        """Return the least-squares light mu (9, 3) at ``state``, or None without data points."""
+        normals, albedo, target = self.data(state)
         if np.asarray(normals).shape[0] == 0:
             return None
         return solve_sh_light(normals, albedo, target, ridge=self.ridge)
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         L = np.asarray(params.environment_map.coefficients, np.float64)
         if L.shape != (MAX_SH_COEFFICIENTS, 3):
             raise InputError(f"SH solver proposal needs a (9, 3) light, got {L.shape}")
-        mu = self.mean(params)
+        mu = self.mean(state)
         eps = rng.normal(0.0, self.sigma, L.shape)
         if mu is None:
             return no_move(params, self.name)

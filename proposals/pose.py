@@ -17,7 +17,7 @@ import numpy as np
 from albedo_model.camera import project_eye, to_eye
 from albedo_model.errors import InputError
 from albedo_model.params import Block, RenderParameter
-from proposals.base import Move, Proposal, check_scale
+from proposals.base import Move, Proposal, ProposalState, check_scale
 
 __all__ = ["Rotation", "Translation", "Distance", "FocalScaling", "ImageCentered", "AXES"]
 
@@ -57,8 +57,9 @@ class Rotation:
         if not self.name:
             object.__setattr__(self, "name", f"{self.axis}-{self.sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         a = rng.normal(0.0, self.sigma)
         pose = params.pose._replace(**{self.axis: float(getattr(params.pose, self.axis) + a)})
         return Move(params._replace(pose=pose), 0.0, Block.POSE, self.name)
@@ -82,8 +83,9 @@ class Translation:
         if not self.name:
             object.__setattr__(self, "name", f"translation-{self.sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         dx, dy = rng.normal(0.0, self.sigma, 2)
         tx, ty, tz = params.pose.translation
         pose = params.pose._replace(translation=(float(tx + dx), float(ty + dy), float(tz)))
@@ -133,8 +135,9 @@ class Distance:
         if not self.name:
             object.__setattr__(self, "name", f"distance-{self.sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         tx, ty, tz = params.pose.translation
         vz = float(params.view.translation[2])
         d = vz - float(tz)
@@ -172,8 +175,9 @@ class FocalScaling:
         if not self.name:
             object.__setattr__(self, "name", f"focal-{self.sigma:g}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
         eps = rng.normal(0.0, self.sigma)
         cam = params.camera._replace(focal_length=float(params.camera.focal_length * np.exp(eps)))
         return Move(params._replace(camera=cam), float(eps), Block.CAMERA, self.name)
@@ -234,9 +238,10 @@ class ImageCentered:
         if not self.name:
             object.__setattr__(self, "name", f"{self.inner.name}@{self.label}")
 
-    def __call__(self, rng: np.random.Generator, params: RenderParameter) -> Move:
-        """Draw a move from ``params`` (not modified) with ``rng``."""
-        move = self.inner(rng, params)
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
+        move = self.inner(rng, state)
         new = move.params
         p_old = self.anchor(params)
         eye_old = _eye(p_old, params)

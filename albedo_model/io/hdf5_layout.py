@@ -43,7 +43,7 @@ _LEGACY_REPRESENTER = "gravis::Mesh Shape Representer"
 
 
 def error_text(exc: BaseException) -> str:
-    """An exception message squeezed onto one line."""
+    """Squeeze an exception message onto one line."""
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
@@ -97,7 +97,7 @@ class H5Reader:
         self.path = os.fspath(path)
 
     def error(self, reason: str) -> FormatError:
-        """A FormatError for this file."""
+        """Return a FormatError for this file."""
         return FormatError(self.path, reason)
 
     def has(self, name: str) -> bool:
@@ -135,7 +135,7 @@ class H5Reader:
         return tuple(node.shape) if isinstance(node, h5py.Dataset) else None
 
     def scalar(self, name: str, *, default: float | None = None) -> float:
-        """A number stored as () or (1,) dataset; ``default`` when absent."""
+        """Read a number stored as a () or (1,) dataset; ``default`` when absent."""
         if default is not None and not self.has(name):
             return default
         value = self.array(name, kind="fiu")
@@ -144,7 +144,7 @@ class H5Reader:
         return value.reshape(-1)[0].item()
 
     def text(self, name: str) -> str:
-        """A string dataset (fixed-length or variable, shape () or (1,))."""
+        """Read a string dataset (fixed-length or variable, shape () or (1,))."""
         node = self.h5.get(name) if self.has(name) else None
         if not isinstance(node, h5py.Dataset):
             raise self.error(f"missing dataset {name}")
@@ -155,7 +155,7 @@ class H5Reader:
         return _text(value, name, self.path)
 
     def text_attr(self, name: str, attr: str) -> str | None:
-        """String attribute ``attr`` of ``name``, or None when absent."""
+        """Read string attribute ``attr`` of ``name``, or None when absent."""
         try:
             attrs = self.h5[name].attrs
             if attr not in attrs:
@@ -173,7 +173,7 @@ class H5Reader:
         return major, minor
 
     def representer(self, group: str) -> Representer:
-        """The reference mesh stored in ``group/representer``.
+        """Read the reference mesh stored in ``group/representer``.
 
         Cells may be int32 or legacy uint32; they are returned as int32 and must
         index the points. The legacy ``gravis::Mesh Shape Representer`` layout
@@ -265,7 +265,7 @@ def write_text(group: h5py.Group, name: str, text: str, *, nul: bool = False) ->
 
 
 def write_text_attr(obj: h5py.HLObject, name: str, text: str) -> None:
-    """String attribute as statismo writes it: fixed length incl. terminator, shape (1,)."""
+    """Write a string attribute as statismo does: fixed length incl. terminator, shape (1,)."""
     data = text.encode("utf-8")
     obj.attrs.create(name, np.array([data], dtype=f"S{len(data) + 1}"))
 

@@ -1,7 +1,12 @@
 """Reading and writing images (PNG/JPEG) with clear errors and atomic writes.
 
 Images are float arrays in [0, 1]; 8-bit files are value/255 (scalismo's
-convention), 16-bit files value/65535.
+convention), 16-bit files value/65535. :func:`read_image_pixels` reads the
+same RGB pixels without that conversion, keeping their stored 8- or 16-bit
+integers (no float copy of a 10-megapixel photograph).
+
+This module imports only :mod:`albedo_model.errors` and
+:mod:`albedo_model.io.atomic`.
 """
 
 from __future__ import annotations
@@ -14,13 +19,14 @@ import numpy as np
 from albedo_model.errors import FormatError, InputError
 from albedo_model.io.atomic import atomic_path
 
-__all__ = ["read_image", "write_png"]
+__all__ = ["read_image", "read_image_pixels", "write_png"]
 
 
-def read_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an RGB image as float64 in [0, 1], shape (H, W, 3).
+def _read_rgb(path: str | os.PathLike, *, name_stored_shape: bool) -> np.ndarray:
+    """Read RGB pixels as stored: (H, W, 3) uint8, uint16 or float, possibly a view.
 
-    Grey images are replicated to three channels; an alpha channel is dropped.
+    ``name_stored_shape`` picks the shape an "unsupported image shape" error
+    names for an empty grey image: the file's (H, W) or the replicated (H, W, 3).
     """
     import imageio.v3 as iio
 
@@ -28,22 +34,70 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     if not p.is_file():
         raise InputError(f"{p}: file not found")
     try:
-        a = np.asarray(iio.imread(p))
+        stored = np.asarray(iio.imread(p))
     except Exception as exc:  # imageio raises many types for corrupt files
         raise FormatError(p, f"not a readable image ({type(exc).__name__})") from None
+    if stored.dtype not in (np.uint8, np.uint16) and stored.dtype.kind != "f":
+        raise FormatError(p, f"unsupported pixel type {stored.dtype}")
+    a = np.repeat(stored[..., None], 3, axis=2) if stored.ndim == 2 else stored
+    if a.ndim != 3 or a.shape[2] not in (3, 4) or min(a.shape[:2]) < 1:
+        shape = stored.shape if name_stored_shape else a.shape
+        raise FormatError(p, f"unsupported image shape {shape}")
+    return a[..., :3] if a.shape[2] == 4 else a
+
+
+def read_image_pixels(path: str | os.PathLike) -> np.ndarray:
+    """Read an RGB image keeping its stored pixel type, shape (H, W, 3).
+
+    Grey images are replicated to three channels; an alpha channel is dropped
+    (the result is then a view of the decoded RGBA array).
+
+    Parameters
+    ----------
+    path : path-like
+        A PNG, JPEG or any other file imageio reads.
+
+    Returns
+    -------
+    (H, W, 3) uint8, uint16 or float array
+        The pixels unscaled, as the file stores them (float files keep their
+        float type).
+
+    Raises
+    ------
+    InputError
+        The file does not exist.
+    FormatError
+        Not a readable image, or an unsupported pixel type or shape.
+    """
+    return _read_rgb(path, name_stored_shape=False)
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an RGB image as float64 in [0, 1], shape (H, W, 3).
+
+    The pixels of :func:`read_image_pixels` (grey replicated, alpha dropped,
+    the same errors), 8-bit values divided by 255, 16-bit ones by 65535, float
+    files converted to float64 unscaled.
+
+    Parameters
+    ----------
+    path : path-like
+        The image file.
+
+    Returns
+    -------
+    (H, W, 3) float64
+        C-contiguous.
+    """
+    a = _read_rgb(path, name_stored_shape=True)
     if a.dtype == np.uint8:
         img = a / 255.0
     elif a.dtype == np.uint16:
         img = a / 65535.0
-    elif a.dtype.kind == "f":
-        img = a.astype(np.float64)
     else:
-        raise FormatError(p, f"unsupported pixel type {a.dtype}")
-    if img.ndim == 2:
-        img = np.repeat(img[..., None], 3, axis=2)
-    if img.ndim != 3 or img.shape[2] not in (3, 4) or min(img.shape[:2]) < 1:
-        raise FormatError(p, f"unsupported image shape {a.shape}")
-    return np.ascontiguousarray(img[..., :3])
+        img = a.astype(np.float64)
+    return np.ascontiguousarray(img)
 
 
 def write_png(path: str | os.PathLike, image: np.ndarray, *, alpha: np.ndarray | None = None,

@@ -59,7 +59,7 @@ def _describe(value: Any) -> str:
 
 
 def get_object(obj: dict[str, Any], key: str, where: str = "") -> dict[str, Any]:
-    """The JSON object at ``obj[key]``."""
+    """Return the JSON object at ``obj[key]``."""
     value = _require(obj, key, where)
     if not isinstance(value, dict):
         raise FieldError(f"{_join(where, key)} must be an object, got {_describe(value)}")
@@ -67,12 +67,12 @@ def get_object(obj: dict[str, Any], key: str, where: str = "") -> dict[str, Any]
 
 
 def get_number(obj: dict[str, Any], key: str, where: str = "") -> float:
-    """The finite number at ``obj[key]`` as a Python float (ints are accepted)."""
+    """Return the finite number at ``obj[key]`` as a Python float (ints are accepted)."""
     return _as_number(_require(obj, key, where), _join(where, key))
 
 
 def get_int(obj: dict[str, Any], key: str, where: str = "") -> int:
-    """The integer at ``obj[key]`` (an integral float such as ``250.0`` is accepted)."""
+    """Return the integer at ``obj[key]`` (an integral float such as ``250.0`` is accepted)."""
     path = _join(where, key)
     x = _as_number(_require(obj, key, where), path)
     if x != int(x):
@@ -81,7 +81,7 @@ def get_int(obj: dict[str, Any], key: str, where: str = "") -> int:
 
 
 def get_bool(obj: dict[str, Any], key: str, where: str = "") -> bool:
-    """The JSON boolean at ``obj[key]``."""
+    """Return the JSON boolean at ``obj[key]``."""
     value = _require(obj, key, where)
     if not isinstance(value, bool):
         raise FieldError(f"{_join(where, key)} must be true or false, got {_describe(value)}")
@@ -89,7 +89,7 @@ def get_bool(obj: dict[str, Any], key: str, where: str = "") -> bool:
 
 
 def get_string(obj: dict[str, Any], key: str, where: str = "") -> str:
-    """The JSON string at ``obj[key]``."""
+    """Return the JSON string at ``obj[key]``."""
     value = _require(obj, key, where)
     if not isinstance(value, str):
         raise FieldError(f"{_join(where, key)} must be a string, got {_describe(value)}")
@@ -97,7 +97,7 @@ def get_string(obj: dict[str, Any], key: str, where: str = "") -> str:
 
 
 def get_vector(obj: dict[str, Any], key: str, n: int, where: str = "") -> tuple[float, ...]:
-    """The list of exactly ``n`` numbers at ``obj[key]``, as a tuple of floats."""
+    """Return the list of exactly ``n`` numbers at ``obj[key]`` as a tuple of floats."""
     path = _join(where, key)
     value = _require(obj, key, where)
     if not isinstance(value, list) or len(value) != n:
@@ -106,7 +106,7 @@ def get_vector(obj: dict[str, Any], key: str, n: int, where: str = "") -> tuple[
 
 
 def get_number_list(obj: dict[str, Any], key: str, where: str = "") -> np.ndarray:
-    """The list of numbers at ``obj[key]`` as a (k,) float64 array (k may be 0)."""
+    """Return the list of numbers at ``obj[key]`` as a (k,) float64 array (k may be 0)."""
     path = _join(where, key)
     value = _require(obj, key, where)
     if not isinstance(value, list):
@@ -115,7 +115,7 @@ def get_number_list(obj: dict[str, Any], key: str, where: str = "") -> np.ndarra
 
 
 def get_rows(obj: dict[str, Any], key: str, width: int, where: str = "") -> np.ndarray:
-    """The list of ``width``-number lists at ``obj[key]`` as a (k, width) float64 array."""
+    """Return the ``width``-number lists at ``obj[key]`` as a (k, width) float64 array."""
     path = _join(where, key)
     value = _require(obj, key, where)
     if not isinstance(value, list):

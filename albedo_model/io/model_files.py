@@ -50,7 +50,7 @@ def file_sha256(path: str | os.PathLike) -> str:
 
 
 def resolve_model_path(spec: str | os.PathLike) -> Path:
-    """The model file named by ``spec``: a path, or ``"default"`` for the built-in model.
+    """Return the model file named by ``spec``: a path, or ``"default"`` (the built-in model).
 
     Raises
     ------
@@ -121,7 +121,7 @@ def load_model(path_or_spec: str | os.PathLike) -> MorphableModel:
 def combine_shape_albedo(
     shape: MorphableModel, albedo: AlbedoPart, *, metadata: dict[str, str] | None = None
 ) -> MorphableModel:
-    """The AlbedoMM joint model: shape, expression, landmarks of ``shape`` + both albedo parts.
+    """Build the AlbedoMM joint model: ``shape``'s geometry and landmarks + both albedo parts.
 
     This is what AlbedoMM's ``AlbedoModelBuilder`` does with BFM 2017 and an
     ``albedoPart`` file. Diffuse and specular share their coefficients.

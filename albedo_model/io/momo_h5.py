@@ -159,7 +159,7 @@ def _read_landmarks(reader: H5Reader) -> dict[str, np.ndarray]:
 def _metadata(
     reader: H5Reader, info: dict | None, layout: str, colour_group: str
 ) -> dict[str, str]:
-    """The stored metadata dict, or one describing a file written elsewhere."""
+    """Return the stored metadata dict, or one describing a file written elsewhere."""
     if info is not None:
         return {str(k): str(v) for k, v in info.get("metadata", {}).items()}
     md = {"source_format": "AlbedoMM HDF5" if layout != "momo" else "scalismo MoMo HDF5"}

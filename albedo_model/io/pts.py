@@ -58,8 +58,8 @@ only approximate the Basel ``bend.upper`` arch. Jaw-contour points other than
 the chin tip (they slide along the silhouette) and the eyelid points are not
 mapped.
 
-This module imports only :mod:`albedo_model.errors` and
-:mod:`albedo_model.io.tlms`.
+This module imports only :mod:`albedo_model.errors`,
+:mod:`albedo_model.io.text_files` and :mod:`albedo_model.io.tlms`.
 """
 
 from __future__ import annotations
@@ -71,6 +71,7 @@ from pathlib import Path
 import numpy as np
 
 from albedo_model.errors import FormatError, InputError
+from albedo_model.io.text_files import read_text_file
 from albedo_model.io.tlms import Landmark
 
 __all__ = ["IBUG68_TO_BASEL", "read_pts", "parse_pts_text", "pts_to_landmarks"]
@@ -178,21 +179,12 @@ def read_pts(path: str | os.PathLike, *, one_based: bool = True, n_points: int |
         Pixel coordinates in the render frame (0-based; 1 subtracted by default).
     """
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise
-    except OSError as exc:
-        raise FormatError(path, f"cannot read: {exc.strerror or exc}") from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise FormatError(path, "not UTF-8 text (is this a .pts file?)") from None
+    text = read_text_file(path, "a .pts file")
     return parse_pts_text(text, one_based=one_based, n_points=n_points, source=path)
 
 
 def pts_to_landmarks(points: np.ndarray, *, visible: bool = True) -> list[Landmark]:
-    """The iBUG points that have a Basel name, as 2D landmarks.
+    """Select the iBUG points that have a Basel name, as 2D landmarks.
 
     Parameters
     ----------

@@ -63,6 +63,7 @@ from albedo_model.io.rps_blocks import (
     view_json,
 )
 from albedo_model.io.rps_legacy import read_v1, read_v2, read_v3
+from albedo_model.io.text_files import read_text_file
 from albedo_model.params import RenderParameter
 
 __all__ = [
@@ -103,7 +104,7 @@ _READERS: dict[str, Callable[[JSON], RenderParameter]] = {
 
 
 def rps_version(data: JSON) -> str:
-    """The normalised version (``"V1.0"`` ... ``"V4.0"``) of a parsed ``.rps`` object.
+    """Return the normalised version (``"V1.0"`` ... ``"V4.0"``) of a parsed ``.rps`` object.
 
     Raises
     ------
@@ -160,7 +161,7 @@ def parse_rps_dict(data: Any, source: str | os.PathLike | None = None) -> Render
 
 
 def format_rps_dict(params: RenderParameter) -> JSON:
-    """The V4 JSON object of ``params`` (plain Python types, key order of the fixtures).
+    """Build the V4 JSON object of ``params`` (plain Python types, fixtures' key order).
 
     Raises
     ------
@@ -238,16 +239,7 @@ def read_rps(path: str | os.PathLike) -> RenderParameter:
         The file is not UTF-8 JSON, or not a valid ``.rps`` of a known version.
     """
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise
-    except OSError as exc:
-        raise FormatError(path, f"cannot read: {exc.strerror or exc}") from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise FormatError(path, "not UTF-8 text (is this an .rps JSON file?)") from None
+    text = read_text_file(path, "an .rps JSON file")
     return parse_rps_text(text, path)
 
 

@@ -72,7 +72,7 @@ def read_pose(obj: JSON, where: str = "pose") -> Pose:
 
 
 def read_view(obj: JSON, where: str = "view") -> View:
-    """``{translation, pitch, yaw, roll}`` (V3, V4; V1/V2 embed it in the camera)."""
+    """Read ``{translation, pitch, yaw, roll}`` (V3, V4; V1/V2 embed it in the camera)."""
     return View(
         translation=get_vector(obj, "translation", 3, where),
         roll=get_number(obj, "roll", where),
@@ -152,7 +152,7 @@ def _floats(values: Any, n: int | None = None) -> list[float]:
 
 
 def pose_json(pose: Pose) -> JSON:
-    """The V4 ``pose`` object."""
+    """Return the V4 ``pose`` object."""
     return {
         "scaling": float(pose.scaling), "translation": _floats(pose.translation, 3),
         "roll": float(pose.roll), "yaw": float(pose.yaw), "pitch": float(pose.pitch),
@@ -160,7 +160,7 @@ def pose_json(pose: Pose) -> JSON:
 
 
 def view_json(view: View) -> JSON:
-    """The V4 ``view`` object."""
+    """Return the V4 ``view`` object."""
     return {
         "translation": _floats(view.translation, 3), "pitch": float(view.pitch),
         "yaw": float(view.yaw), "roll": float(view.roll),
@@ -168,7 +168,7 @@ def view_json(view: View) -> JSON:
 
 
 def camera_json(cam: Camera) -> JSON:
-    """The V4 ``camera`` object (principal point in NDC)."""
+    """Return the V4 ``camera`` object (principal point in NDC)."""
     return {
         "focalLength": float(cam.focal_length), "sensorSize": _floats(cam.sensor_size, 2),
         "near": float(cam.near), "far": float(cam.far),
@@ -177,7 +177,7 @@ def camera_json(cam: Camera) -> JSON:
 
 
 def sh_light_json(light: SHLight) -> JSON:
-    """The V4 ``environmentMap`` object, (K, 3) coefficients in the internal order."""
+    """Return the V4 ``environmentMap`` object, (K, 3) coefficients in the internal order."""
     coeffs = np.asarray(light.coefficients, np.float64)
     if coeffs.size == 0:
         coeffs = coeffs.reshape(0, 3)
@@ -187,7 +187,7 @@ def sh_light_json(light: SHLight) -> JSON:
 
 
 def directional_light_json(light: DirectionalLight) -> JSON:
-    """The V4 ``directionalLight`` object."""
+    """Return the V4 ``directionalLight`` object."""
     return {
         "ambient": _floats(light.ambient, 3), "diffuse": _floats(light.diffuse, 3),
         "specular": _floats(light.specular, 3), "direction": _floats(light.direction, 3),
@@ -196,7 +196,7 @@ def directional_light_json(light: DirectionalLight) -> JSON:
 
 
 def momo_json(momo: MoMoCoefficients) -> JSON:
-    """The V4 ``momo`` object."""
+    """Return the V4 ``momo`` object."""
     return {
         "shape": _floats(momo.shape), "color": _floats(momo.albedo),
         "expression": _floats(momo.expression), "modelURI": str(momo.model_uri),
@@ -204,11 +204,11 @@ def momo_json(momo: MoMoCoefficients) -> JSON:
 
 
 def image_size_json(size: ImageSize) -> JSON:
-    """The V4 ``imageSize`` object."""
+    """Return the V4 ``imageSize`` object."""
     return {"height": int(size.height), "width": int(size.width)}
 
 
 def color_transform_json(ct: ColorTransform) -> JSON:
-    """The V4 ``colorTransform`` object."""
+    """Return the V4 ``colorTransform`` object."""
     return {"gain": _floats(ct.gain, 3), "colorContrast": float(ct.contrast),
             "offset": _floats(ct.offset, 3)}

@@ -12,8 +12,8 @@ bit-exactly; scalismo's Java ``%.17g`` pads with zeros instead of printing the
 17th digit, and both parse to the same doubles. Unlike scalismo (which parses
 to float32), the reader keeps float64.
 
-This module imports only :mod:`albedo_model.errors` and
-:mod:`albedo_model.io.atomic`.
+This module imports only :mod:`albedo_model.errors`,
+:mod:`albedo_model.io.atomic` and :mod:`albedo_model.io.text_files`.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ import numpy as np
 
 from albedo_model.errors import FormatError, InputError
 from albedo_model.io.atomic import atomic_path
+from albedo_model.io.text_files import read_text_file
 
 __all__ = [
     "Landmark", "parse_tlms_text", "format_tlms_text", "read_tlms", "write_tlms",
@@ -152,16 +153,7 @@ def read_tlms(path: str | os.PathLike, dim: int | None = None) -> list[Landmark]
         Not UTF-8 text, or a malformed line.
     """
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise
-    except OSError as exc:
-        raise FormatError(path, f"cannot read: {exc.strerror or exc}") from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise FormatError(path, "not UTF-8 text (is this a TLMS landmark file?)") from None
+    text = read_text_file(path, "a TLMS landmark file")
     return parse_tlms_text(text, dim, path)
 
 

@@ -23,8 +23,14 @@ visibility (:func:`visible_points` uses three slightly tilted rays). Tests
 check both against robust traversal and a z-buffer reference.
 :mod:`albedo_model.render.scene_slots` double-buffers two casters for MCMC proposals.
 
+This module owns the Embree device, scenes and queries (and the threads they
+run on); the array work around the queries (ray buffers, hit records, windows,
+leak closing, back-face continuation, visibility rays) is in
+:mod:`albedo_model.render.ray_batches`.
+
 This is the only module that imports ``embreex``. It imports
-:mod:`albedo_model.render.embree_refit` and :mod:`albedo_model.errors`.
+:mod:`albedo_model.render.embree_refit`, :mod:`albedo_model.render.ray_batches`
+and :mod:`albedo_model.errors`.
 """
 
 from __future__ import annotations
@@ -33,13 +39,18 @@ import logging
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from typing import NamedTuple
 
 import numpy as np
 from embreex import mesh_construction, rtcore, rtcore_scene
 
-from albedo_model.render.embree_refit import RefitHandle, RefitUnavailable, prepare_refit, verify_refit
 from albedo_model.errors import InputError
+from albedo_model.render.embree_refit import (
+    RefitHandle, RefitUnavailable, prepare_refit, verify_refit,
+)
+from albedo_model.render.ray_batches import (
+    RayHits, as_rays, bounds_scale, cast_window, checked_mesh, checked_vertices, close_leaks,
+    continue_past_backfaces, grid_window, ray_pair, vertex_bounds, visibility_rays,
+)
 
 __all__ = ["RayHits", "RayCaster", "visible_points", "embree_pass", "refit_check",
            "default_threads"]
@@ -47,7 +58,6 @@ __all__ = ["RayHits", "RayCaster", "visible_points", "embree_pass", "refit_check
 log = logging.getLogger(__name__)
 
 _MIN_SPLIT = 2048  # below this many rays a second thread costs more than it saves
-_MAX_CONTINUE = 8  # back-face continuation rounds before a ray is declared a miss
 _lock = threading.Lock()
 _state: dict = {}
 
@@ -73,38 +83,6 @@ def _executor() -> ThreadPoolExecutor:
         if "pool" not in _state:
             _state["pool"] = ThreadPoolExecutor(max_workers=1, thread_name_prefix="raycast")
         return _state["pool"]
-
-
-class RayHits(NamedTuple):
-    """Nearest front-facing hits of a batch of rays.
-
-    Attributes
-    ----------
-    prim_id : (P,) int32
-        Triangle index, -1 for a miss.
-    bary : (P, 2) float32
-        Embree's (u, v): the hit point is ``(1-u-v) a + u b + v c`` for triangle
-        ``(a, b, c)``; 0 for misses. In the model frame these are also the
-        perspective-correct barycentrics of the pixel.
-    t : (P,) float32
-        Ray parameter of the hit (in units of the direction's length); inf for misses.
-    """
-
-    prim_id: np.ndarray
-    bary: np.ndarray
-    t: np.ndarray
-
-    @property
-    def mask(self) -> np.ndarray:
-        """(P,) bool, True where a triangle was hit."""
-        return self.prim_id >= 0
-
-
-def _as_rays(a: np.ndarray, name: str) -> np.ndarray:
-    a = np.ascontiguousarray(a, dtype=np.float32)
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise InputError(f"{name} must have shape (P, 3), got {a.shape}")
-    return a
 
 
 class RayCaster:
@@ -135,40 +113,37 @@ class RayCaster:
 
     def __init__(self, vertices: np.ndarray, triangles: np.ndarray, *,
                  threads: int | None = None, robust: bool = False, update: str = "auto"):
-        tri = np.asarray(triangles)
-        if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-            raise InputError(
-                f"triangles must be an (m, 3) integer array, got {tri.shape} {tri.dtype}")
-        v = self._checked_vertices(vertices, None)
-        if tri.size and (tri.min() < 0 or tri.max() >= len(v)):
-            raise InputError(f"triangle indices must lie in [0, {len(v)})")
+        v, tri = checked_mesh(vertices, triangles)
         if update not in ("auto", "refit", "rebuild"):
             raise InputError(f"update must be 'auto', 'refit' or 'rebuild', got {update!r}")
         self.threads = default_threads() if threads is None else int(threads)
         if self.threads not in (1, 2):
             raise InputError(f"threads must be 1 or 2, got {threads}")
         self.robust = bool(robust)
-        self._triangles = np.ascontiguousarray(tri, dtype=np.int32)
+        self._triangles = tri
         self._n_vertices = len(v)
-        self._bounds = _bounds(v)
+        self._bounds = vertex_bounds(v)
         want_refit = update != "rebuild"
         ok, reason = refit_check() if want_refit else (False, "rebuild requested")
         if want_refit and not ok and update == "refit":
             log.warning("BVH refit unavailable (%s); rebuilding scenes instead", reason)
         self._refit: RefitHandle | None = None
         self._build(v, refit=want_refit and ok)
-        self.scale = float(np.linalg.norm(self._bounds[1] - self._bounds[0])) or 1.0
+        self.scale = bounds_scale(self._bounds)
 
     @property
     def refit_supported(self) -> bool:
+        """True when vertex updates refit the BVH in place."""
         return self._refit is not None
 
     @property
     def update_method(self) -> str:
+        """How :meth:`update_vertices` works: "refit" or "rebuild"."""
         return "refit" if self._refit is not None else "rebuild"
 
     @property
     def n_vertices(self) -> int:
+        """Number of vertices, fixed at construction."""
         return self._n_vertices
 
     @property
@@ -182,15 +157,6 @@ class RayCaster:
         t = self._triangles.view()
         t.flags.writeable = False
         return t
-
-    def _checked_vertices(self, vertices: np.ndarray, n: int | None) -> np.ndarray:
-        v = np.ascontiguousarray(vertices, dtype=np.float32)
-        if v.ndim != 2 or v.shape[1] != 3 or (n is not None and len(v) != n):
-            want = "(n, 3)" if n is None else f"({n}, 3)"
-            raise InputError(f"vertices must have shape {want}, got {v.shape}")
-        if not np.isfinite(v).all():
-            raise InputError("vertices contain NaN or inf")
-        return v
 
     def _build(self, v: np.ndarray, *, refit: bool) -> None:
         device = _device()
@@ -214,8 +180,8 @@ class RayCaster:
         ----------
         vertices : (n, 3) float array, model frame, same n as at construction
         """
-        v = self._checked_vertices(vertices, self._n_vertices)
-        self._bounds = _bounds(v)
+        v = checked_vertices(vertices, self._n_vertices)
+        self._bounds = vertex_bounds(v)
         if self._refit is not None:
             try:
                 self._refit.update(v)
@@ -307,103 +273,25 @@ class RayCaster:
         -------
         RayHits
         """
-        o = _as_rays(origins, "origins")
-        d = _as_rays(directions, "directions")
-        if len(d) not in (1, len(o)):
-            raise InputError(f"directions must have shape (1, 3) or {o.shape}, got {d.shape}")
-        if image_shape is not None and int(image_shape[0]) * int(image_shape[1]) != len(o):
-            raise InputError(f"image_shape {tuple(image_shape)} does not match {len(o)} rays")
-        if window is not None:
-            if image_shape is None:
-                raise InputError("a window needs image_shape")
-            h, w = (int(x) for x in image_shape)
-            y0, y1, x0, x1 = (int(x) for x in window)
-            if not (0 <= y0 <= y1 <= h and 0 <= x0 <= x1 <= w):
-                raise InputError(f"window {tuple(window)} is not inside the image {h}x{w}")
-            if x1 - x0 > 0.75 * w:  # see _cast_window
-                x0, x1 = 0, w
-            if (y0, y1, x0, x1) != (0, h, 0, w):
-                return self._cast_window(o, d, tfar, cull_backfaces, h, w, (y0, y1, x0, x1))
+        o, d = ray_pair(origins, directions)
+        win = grid_window(len(o), image_shape, window)
+        if win is not None:  # (see ray_batches.cast_window)
+            def cast_sub(oo, dd, shape):
+                return self.cast(oo, dd, tfar=tfar, cull_backfaces=cull_backfaces,
+                                 image_shape=shape)
+
+            return cast_window(cast_sub, o, d, image_shape, win)
         limit = None if tfar is None else float(tfar)
         prim, bary, t, back = self._intersect(o, d, limit)
         if cull_backfaces and back.any():
-            self._continue_past_backfaces(o, d, limit, prim, bary, t, np.flatnonzero(back))
+            continue_past_backfaces(self._intersect, o, d, limit, prim, bary, t,
+                                    np.flatnonzero(back), self.scale)
         if image_shape is not None and not self.robust:
-            self._close_leaks(o, d, limit, cull_backfaces, prim, bary, t, image_shape)
+            def cast_shifted(oo, dd):
+                return self.cast(oo, dd, tfar=limit, cull_backfaces=cull_backfaces)
+
+            close_leaks(cast_shifted, o, d, prim, bary, t, image_shape)
         return RayHits(prim, bary, t)
-
-    def _cast_window(self, o, d, tfar, cull, h, w, window) -> RayHits:
-        """:meth:`cast` of the window's rays of an (h, w) grid; misses elsewhere.
-
-        Whole rows are contiguous slices of the ray arrays (no copy); :meth:`cast`
-        widens a window to whole rows unless that adds a third (copying the
-        rays and hits costs about as much as casting a few percent of them).
-        """
-        y0, y1, x0, x1 = window
-        prim = np.full(h * w, -1, np.int32)
-        bary = np.zeros((h * w, 2), np.float32)
-        t = np.full(h * w, np.inf, np.float32)
-        if y1 <= y0 or x1 <= x0:
-            return RayHits(prim, bary, t)
-        rows = slice(y0 * w, y1 * w)
-        if (x0, x1) == (0, w):
-            r = self.cast(o[rows], d if len(d) == 1 else d[rows], tfar=tfar,
-                          cull_backfaces=cull, image_shape=(y1 - y0, w))
-            prim[rows], bary[rows], t[rows] = r.prim_id, r.bary, r.t
-            return RayHits(prim, bary, t)
-
-        def sub(a):
-            return np.ascontiguousarray(a.reshape(h, w, 3)[y0:y1, x0:x1]).reshape(-1, 3)
-
-        shape = (y1 - y0, x1 - x0)
-        r = self.cast(sub(o), d if len(d) == 1 else sub(d), tfar=tfar, cull_backfaces=cull,
-                      image_shape=shape)
-        prim.reshape(h, w)[y0:y1, x0:x1] = r.prim_id.reshape(shape)
-        bary.reshape(h, w, 2)[y0:y1, x0:x1] = r.bary.reshape(*shape, 2)
-        t.reshape(h, w)[y0:y1, x0:x1] = r.t.reshape(shape)
-        return RayHits(prim, bary, t)
-
-    def _continue_past_backfaces(self, o, d, limit, prim, bary, t, idx) -> None:
-        """Re-cast rays ``idx`` from just behind their back-facing hits (in place)."""
-        for _ in range(_MAX_CONTINUE):
-            dd = d[idx] if len(d) > 1 else np.broadcast_to(d, (len(idx), 3))
-            dn = np.linalg.norm(dd.astype(np.float64), axis=1)
-            start = t[idx].astype(np.float64) + 1e-5 * self.scale / np.maximum(dn, 1e-30)
-            oo = (o[idx] + start[:, None] * dd).astype(np.float32)
-            rest = None if limit is None else np.maximum(limit - start, 0.0).astype(np.float32)
-            p2, b2, t2, back = self._intersect(oo, np.ascontiguousarray(dd, np.float32), rest)
-            hit = p2 >= 0
-            prim[idx] = p2
-            bary[idx] = b2
-            t[idx] = np.where(hit, t2 + start, np.inf)
-            back &= hit
-            idx = idx[back]
-            if idx.size == 0:
-                return
-        prim[idx] = -1
-        bary[idx] = 0.0
-        t[idx] = np.inf
-
-    def _close_leaks(self, o, d, limit, cull, prim, bary, t, image_shape) -> None:
-        """Re-cast isolated misses of a pixel grid with slightly shifted rays (in place)."""
-        h, w = (int(x) for x in image_shape)
-        hit = (prim >= 0).reshape(h, w)
-        cand = np.zeros((h, w), bool)
-        cand[:, 1:-1] = hit[:, :-2] & hit[:, 2:]
-        cand[1:-1, :] |= hit[:-2, :] & hit[2:, :]
-        cand &= ~hit
-        idx = np.flatnonzero(cand)
-        for step in (1, w):
-            if idx.size == 0:
-                return
-            last = idx % w == w - 1 if step == 1 else idx // w == h - 1
-            nb = np.where(last, idx - step, idx + step)
-            oo = o[idx] + 1e-3 * (o[nb] - o[idx])
-            dd = d if len(d) == 1 else d[idx] + 1e-3 * (d[nb] - d[idx])
-            r = self.cast(oo, dd, tfar=limit, cull_backfaces=cull)
-            got = r.prim_id >= 0
-            prim[idx[got]], bary[idx[got]], t[idx[got]] = r.prim_id[got], r.bary[got], r.t[got]
-            idx = idx[~got]
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray,
                  tmax: float | np.ndarray | None = None) -> np.ndarray:
@@ -420,10 +308,7 @@ class RayCaster:
         -------
         (P,) bool
         """
-        o = _as_rays(origins, "origins")
-        d = _as_rays(directions, "directions")
-        if len(d) not in (1, len(o)):
-            raise InputError(f"directions must have shape (1, 3) or {o.shape}, got {d.shape}")
+        o, d = ray_pair(origins, directions)
         if tmax is not None and not np.isscalar(tmax):
             tmax = np.ascontiguousarray(tmax, dtype=np.float32).reshape(-1)
             if len(tmax) != len(o):
@@ -436,18 +321,6 @@ class RayCaster:
         return np.asarray(ids) >= 0
 
 
-def _bounds(v: np.ndarray) -> np.ndarray:
-    """(2, 3) min and max corner of (n, 3) points (read-only float64)."""
-    b = np.zeros((2, 3))
-    if len(v):
-        # per column: an axis-0 reduction of an (n, 3) array is 10x slower
-        for c in range(3):
-            col = v[:, c]
-            b[0, c], b[1, c] = col.min(), col.max()
-    b.flags.writeable = False
-    return b
-
-
 def embree_pass(caster: RayCaster, origins: np.ndarray, directions: np.ndarray,
                 tfar: float | None = None) -> dict:
     """One bare Embree query of ``caster``'s scene on the calling thread (for benchmarks).
@@ -456,8 +329,8 @@ def embree_pass(caster: RayCaster, origins: np.ndarray, directions: np.ndarray,
     ``u``, ``v``, ``tfar``, ``Ng``, ...): :meth:`RayCaster.cast` is this plus its
     bookkeeping (back-face test, leak closing, output arrays).
     """
-    o = _as_rays(origins, "origins")
-    d = _as_rays(directions, "directions")
+    o = as_rays(origins, "origins")
+    d = as_rays(directions, "directions")
     return caster._scene.run(o, d, None if tfar is None else float(tfar), "INTERSECT", 1)
 
 
@@ -490,28 +363,9 @@ def visible_points(points_model: np.ndarray, eye_model: np.ndarray | None, caste
     is reported visible when nothing else is in the way (on closed meshes its
     own mesh is). For directional-light shadows use :meth:`RayCaster.occluded`.
     """
-    p = np.asarray(points_model, np.float64).reshape(-1, 3)
     eps = 1e-4 * caster.scale if eps is None else float(eps)
-    if eye_model is not None:
-        to_eye = np.asarray(eye_model, np.float64).reshape(1, 3) - p
-        dist = np.linalg.norm(to_eye, axis=1)
-        u = to_eye / np.maximum(dist, 1e-30)[:, None]
-        tmax = np.maximum(dist - 2.0 * eps, 0.0).astype(np.float32)
-    elif direction is not None:
-        u = np.broadcast_to(np.asarray(direction, np.float64) / np.linalg.norm(direction), p.shape)
-        tmax = None
-    else:
-        raise InputError("visible_points needs eye_model or direction")
-    # Two slightly tilted copies of each ray: a leak through an edge (non-robust
-    # traversal, e.g. a midline point seen in the symmetry plane) must not make
-    # an occluded point visible. The tilt (1e-5 rad) moves nothing near the point.
-    side1 = np.cross(u, np.where(np.abs(u[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
-    side1 /= np.linalg.norm(side1, axis=1, keepdims=True)
-    side2 = np.cross(u, side1)
-    start = (p + eps * u).astype(np.float32)
-    origins = np.concatenate([start, start, start])
-    dirs = np.concatenate([u, u + 1e-5 * side1, u + 1e-5 * side2]).astype(np.float32)
-    occ = caster.occluded(origins, dirs, None if tmax is None else np.tile(tmax, 3))
+    origins, dirs, tmax = visibility_rays(points_model, eye_model, eps, direction)
+    occ = caster.occluded(origins, dirs, tmax)
     return ~occ.reshape(3, -1).any(axis=0)
 
 

@@ -4,46 +4,27 @@ A :class:`Renderer` owns the host resources of one model (two Embree scenes for
 double buffering, device copies of the triangles, transposed bases for block
 updates) and turns scene parameters into a :class:`RenderState`: the per-vertex
 instance, the ray-cast buffers of every pixel, and the per-pixel attributes the
-shader reads (world normals, view directions, diffuse and specular albedo). The
-state is immutable; :meth:`Renderer.update` returns a new one and recomputes
-only the stages whose inputs a change touched (``STAGE_DEPS``):
+shader reads. The state is immutable; :meth:`Renderer.update` returns a new one
+and recomputes only the stages whose blocks a change touched, as the one table
+:data:`albedo_model.render.cache_table.STAGE_DEPS` says (geometry: the changed
+block of the instance, normals and the BVH refit into the spare scene; raycast:
+rays, ray cast and pixel attributes; albedo: the changed block of the albedo
+instance and the pixel albedo; light, colour transform and specular exponent:
+nothing before shading). Each state carries the version stamps of its blocks,
+on which the caches outside it (the ray buffer here, the proposals' data) are
+keyed.
 
-==========================  =================================================
-touched                      recomputed
-==========================  =================================================
-SHAPE, EXPRESSION            changed block of the instance, normals, BVH refit
-                             (into the spare scene), ray cast, pixel attributes
-POSE, CAMERA                 rays (transformed into the model frame), ray cast,
-                             pixel attributes
-ALBEDO                       changed block of the albedo instance, pixel albedo
-LIGHT, COLOR_TRANSFORM, SPEC. EXP.   nothing before shading
-==========================  =================================================
-
-The light transport of every pixel (:func:`albedo_model.shading.image_formation.pixel_light`:
-SH irradiance, specular lobe, directional light) is cached too and recomputed
-only when the geometry, light or specular exponent changes; the image is then
-``albedo x light`` plus colour transform, clamp and gamma
-(:func:`albedo_model.shading.image_formation.combine_pixels`), all compiled for the scene's
-effect set. The per-pixel caches are deferred
-(:class:`~albedo_model.render.state.Deferred`): :meth:`Renderer.compose`,
-which fuses the combination with a caller's function (a likelihood) in one
-``jit``, computes the attributes a step changed inside that same loop over the
-pixels without storing them (on XLA-CPU a multi-output stage costs about three
-times as much), and an accepted state computes them once when a later step
-reads them. A light step is thus one pass over the pixels without any gather,
-an albedo step one pass with the albedo gathers, a geometry step one pass with
-all gathers after the ray cast. A geometry
-change is cast with the spare scene; the sampler calls :meth:`Renderer.accept`
-or :meth:`Renderer.reject`, so a rejected proposal costs nothing to undo.
-
-Work follows the face, not the image: only the rays inside the projected
-bounding box of the mesh are cast (:func:`albedo_model.camera.pixel_window`),
-and the per-pixel caches hold a *pixel set* (every hit plus a few misses, in
-whole-row steps of 1/16 of the image: :attr:`RenderState.pixels`), so that a
-face filling a third of an LFW-like image costs about a third of the per-pixel
-work. :meth:`Renderer.shade` and :meth:`Renderer.image` return whole images;
-:meth:`Renderer.compose` hands a likelihood the whole image or, with
-``pixel_set=True``, the set itself.
+The per-pixel light transport (SH irradiance, specular lobe, directional
+light) is cached too; the image is ``albedo x light`` plus colour transform,
+clamp and gamma, compiled for the scene's effect set. The per-pixel caches are
+deferred (:class:`~albedo_model.render.state.Deferred`): :meth:`Renderer.compose`
+fuses the attributes a step changed into the likelihood's program without
+storing them, and an accepted state computes them when a later step reads
+them. A geometry change is cast with the spare scene; the sampler calls
+:meth:`Renderer.accept` or :meth:`Renderer.reject`, so a rejected proposal
+costs nothing to undo. Only the rays inside the projected bounding box of the
+mesh are cast, and the caches hold a pixel set
+(:mod:`albedo_model.render.pixel_work`): work follows the face, not the image.
 
 This module imports only ``albedo_model`` modules.
 """
@@ -57,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from albedo_model.camera import (
-    camera_rays, euler_rotation, eye_from_world, pixel_scale, pixel_window, principal_point_px,
+    camera_rays, euler_rotation, pixel_window,
 )
 from albedo_model.errors import InputError
 from albedo_model.render.instances import ModelInstances
@@ -65,21 +46,26 @@ from albedo_model.shading.interpolation import needs_view
 from albedo_model.model import MorphableModel
 from albedo_model.params import Block, RenderParameter
 from albedo_model.render.raycast import RayHits
-from albedo_model.render.state import (
-    Deferred, HostAlbedo, Rendered, RenderState, albedo_delta_stage, albedo_stage, combine_stage,
-    fused_stage, geometry_stage, hits_stage, image_stage, light_effects, light_stage,
-    normals_stage, pixels_satisfy,
+from albedo_model.render.stages import (
+    albedo_stage, combine_stage, geometry_stage, hits_stage,
+    light_effects, light_stage, normals_stage, pixels_satisfy,
 )
-from albedo_model.render.cache_table import STAGE_DEPS
+from albedo_model.render.state import Deferred, HostAlbedo, Rendered, RenderState
+from albedo_model.render.cache_table import (
+    BlockVersions, bump, new_stamp, new_versions, stage_key, stale,
+)
+from albedo_model.render.albedo_updates import DeviceAlbedo
+from albedo_model.render.pixel_work import (
+    choose_pixel_set, compose, packed_camera, pixel_coordinates,
+)
 from albedo_model.render.scene_slots import SceneSlots
 from albedo_model.shading.image_formation import Effects, Shaded, effects_for, pack_shading_params, to_hwc
 from albedo_model.render.visibility import directional_visibility, landmark_pixels
 
-__all__ = ["Renderer", "RenderState", "Rendered", "STAGE_DEPS", "render"]
+__all__ = ["Renderer", "RenderState", "Rendered", "render"]
 
 
 
-_PIXEL_BUCKETS = 16  # pixel-set capacities are multiples of 1/16 of the image's rows
 
 
 def _n_pixels(state: RenderState) -> int:
@@ -87,8 +73,6 @@ def _n_pixels(state: RenderState) -> int:
     return int(w) * int(h)
 
 
-_FUSED_INPUT = {"hits": "pixel_hits", "geometry": "pixel_geometry",
-                "albedo": "pixel_albedo", "light": "pixel_light"}
 
 
 class Renderer:
@@ -129,7 +113,7 @@ class Renderer:
         self._rays_key = None
         self._views_cache: dict = {}
         self._instances = ModelInstances(model, self.specular)
-        self._albedo_basis = None  # device (k, rows * 3n) transposed albedo basis, on first use
+        self._device_albedo = DeviceAlbedo(self._instances)
         self._capacity: dict[int, int] = {}  # pixel-set capacity per image size
 
     # -- effects ------------------------------------------------------------
@@ -139,41 +123,13 @@ class Renderer:
                            directional_specular_map=self.directional_specular_map)
 
     # -- stages ---------------------------------------------------------------
-    def _albedo_update(self, state: RenderState, params: RenderParameter):
-        """None when nothing changed, else ``(albedo_dev, host copy, update count)``.
-
-        A block change is applied on the device (:func:`albedo_delta_stage`); a large
-        change, or every ``refresh_every``-th update, recomputes the instance on the
-        host in float64.
-        """
-        plan = self._instances.albedo_plan(state.params, params, state.updates[1])
-        if plan is None:
-            return None
-        if isinstance(plan, str):
-            host = self._instances.albedo(params)
-            albedo_dev = jnp.asarray(host)
-            return albedo_dev, HostAlbedo(albedo_dev, host), 0
-        idx, delta = plan
-        if self._albedo_basis is None:
-            parts = self._instances.albedo_parts
-            self._albedo_basis = jnp.asarray(self._instances.updater.transposed(parts))
-        # one compile per block size up to 16 (a sampler uses a few fixed sizes); beyond,
-        # pad to a power of two (repeating a row with zero weight) to bound recompiles
-        size = len(idx) if len(idx) <= 16 else 1 << int(np.ceil(np.log2(len(idx))))
-        idx = np.concatenate([idx, np.full(size - len(idx), idx[0], np.int32)])
-        delta = np.concatenate([delta, np.zeros(size - len(delta), np.float32)])
-        albedo_dev = albedo_delta_stage(state.albedo_dev, self._albedo_basis, idx, delta)
-        return albedo_dev, HostAlbedo(albedo_dev), state.updates[1] + 1
-
-    def _cast(self, params: RenderParameter, caster) -> RayHits:
+    def _cast(self, params: RenderParameter, caster, versions: BlockVersions) -> RayHits:
         size = params.image_size
         w, h = int(size.width), int(size.height)
-        key = (params.camera, size, params.pose, params.view)
-        try:
-            same = self._rays_key == key  # a shape step keeps the rays of the last cast
-        except ValueError:  # array-valued fields: compare nothing, recompute
-            same = False
-        if not same:
+        # the rays of the last cast serve while pose and camera keep their stamps (a shape
+        # step); view and image size are never proposed, compared by value
+        key = (stage_key(versions, "rays"), tuple(size), tuple(params.view))
+        if self._rays_key != key:
             if len(self._rays[0]) != w * h:
                 self._rays = (np.empty((w * h, 3), np.float32), np.empty((w * h, 3), np.float32))
             camera_rays(params.camera, size, params.pose, params.view, out=self._rays)
@@ -184,51 +140,29 @@ class Renderer:
         window = pixel_window(caster.bounds, params.camera, size, params.pose, params.view)
         return caster.cast(*self._rays, tfar=tfar, image_shape=(h, w), window=window)
 
-    def _pixel_set(self, prim_id: np.ndarray, height: int) -> np.ndarray | None:
-        """The pixels the caches of a ray cast hold (sorted indices), or None for all.
-
-        Every hit, plus the first misses up to a capacity in steps of 1/16 of the image's rows
-        (so a multiple of its width): the per-pixel programs then cost in proportion to the face
-        (a face filling a third of the image: a third of the work), and compile for few shapes.
-        The capacity grows when the hits outgrow it and shrinks when they fall below half of it
-        (so that it does not flap between two sizes).
-        """
-        n_pixels = len(prim_id)
-        hit = prim_id >= 0
-        n = int(np.count_nonzero(hit))
-        step = -(-height // _PIXEL_BUCKETS) * (n_pixels // height)  # whole rows
-        cap = self._capacity.get(n_pixels)
-        if cap is None or n > cap or n < cap // 2:
-            cap = min(n_pixels, max(step, -(-n // step) * step))
-            self._capacity[n_pixels] = cap
-        if cap > n_pixels - step:
-            return None
-        if cap > n:
-            hit = hit.copy()
-            hit[np.flatnonzero(~hit)[:cap - n]] = True
-        return np.flatnonzero(hit).astype(np.int32)
-
-    def _hits_cache(self, hits: RayHits, effects: Effects, height: int):
+    def _hits_cache(self, hits: RayHits, effects: Effects, height: int, stamp: int):
         """(pixel set, its device copy, Deferred pixel hits) of a ray cast of ``height`` rows."""
-        pixels = self._pixel_set(hits.prim_id, height)
+        n_pixels = len(hits.prim_id)
+        pixels, self._capacity[n_pixels] = choose_pixel_set(
+            hits.prim_id, height, self._capacity.get(n_pixels))
         # whole buffers to the device (picked there: a host gather costs more);
         # device_put is several times faster than jnp.asarray for these
         prim, bary, pixels_dev = jax.device_put((hits.prim_id, hits.bary, pixels))
         px_hits = Deferred(hits_stage, {"triangles": self._triangles, "prim_id": prim,
-                                        "bary": bary, "pixels": pixels_dev}, effects)
+                                        "bary": bary, "pixels": pixels_dev}, effects, stamp)
         return pixels, pixels_dev, px_hits
 
     def _pixels(self, params: RenderParameter, effects: Effects, normals, albedo_dev,
-                px_hits: Deferred, pixels_dev):
+                px_hits: Deferred, pixels_dev, stamp: int):
         """Deferred (geometry, albedo) of the pixels of ``px_hits`` (pixel set ``pixels_dev``)."""
         p = params
         rotation = euler_rotation(p.pose.roll, p.pose.yaw, p.pose.pitch).astype(np.float32)
         view = self._world_views(p) if needs_view(effects) else None
         geometry = Deferred(geometry_stage(effects),
                             {"hits": px_hits, "normals": normals, "rotation": rotation,
-                             "view": view, "pixels": pixels_dev}, effects)
+                             "view": view, "pixels": pixels_dev}, effects, stamp)
         albedo = Deferred(albedo_stage(effects), {"hits": px_hits, "albedo_dev": albedo_dev},
-                          effects)
+                          effects, stamp)
         return geometry, albedo
 
     def _shading(self, params: RenderParameter) -> np.ndarray:
@@ -249,17 +183,19 @@ class Renderer:
         else:
             self._slots.reject()
             self._slots.current.update_vertices(v32)
-        hits = self._cast(params, self._slots.current)
+        versions, stamp = new_versions(), new_stamp()
+        hits = self._cast(params, self._slots.current, versions)
         albedo = self._instances.albedo(params)
         albedo_dev = jnp.asarray(albedo)
         effects = self.effects(params)
-        pixels, pixels_dev, px_hits = self._hits_cache(hits, effects, params.image_size.height)
+        pixels, pixels_dev, px_hits = self._hits_cache(hits, effects, params.image_size.height,
+                                                       stamp)
         geometry, px_albedo = self._pixels(params, effects, normals, albedo_dev, px_hits,
-                                           pixels_dev)
+                                           pixels_dev, stamp)
         state = RenderState(
             params, shape, vertices, normals, albedo_dev, HostAlbedo(albedo_dev, albedo), hits,
             hits.prim_id, hits.bary, False, px_hits, geometry, px_albedo, None, effects,
-            self._shading(params), (0, 0), pixels, pixels_dev,
+            self._shading(params), (0, 0), pixels, pixels_dev, versions, stamp,
         )
         state = state._replace(pixel_light=self._light(state, effects))
         for cache in (px_hits, geometry, px_albedo, state.pixel_light):
@@ -288,46 +224,54 @@ class Renderer:
             raise InputError("Renderer.update needs a state from init_state first")
         s = state
         n_shape, n_albedo = s.updates
+        stamp = new_stamp()
+        versions = bump(s.versions, touched)
         out = {}
         caster = self._slots.current
-        if touched & STAGE_DEPS["geometry"]:
+        if stale("geometry", touched):
             shape, n_shape = self._instances.update_shape(s.params, params, s.shape, n_shape)
             v32 = shape.reshape(-1, 3)
             vertices = jax.device_put(v32)
             out.update(shape=shape, vertices=vertices, geometry_pending=True,
                        normals=normals_stage(vertices, self._triangles))  # runs while Embree casts
             caster = self._slots.propose(v32)
-        s = s._replace(params=params, **out)
-        if touched & (Block.LIGHT | Block.COLOR_TRANSFORM):
+        s = s._replace(params=params, versions=versions, stamp=stamp, **out)
+        if stale("effects", touched):
             s = s._replace(effects=self.effects(params))
-        if touched & STAGE_DEPS["shading"]:
+        if stale("shading", touched):
             s = s._replace(shading=self._shading(params))
         effects = s.effects
-        if touched & STAGE_DEPS["albedo"]:
-            change = self._albedo_update(state, params)
+        albedo_changed = False
+        if stale("albedo", touched):
+            change = self._device_albedo.update(state, params)
             if change is not None:
                 albedo_dev, host_albedo, n_albedo = change
                 s = s._replace(albedo_dev=albedo_dev, host_albedo=host_albedo)
+                albedo_changed = True
         s = s._replace(updates=(n_shape, n_albedo))
-        if touched & STAGE_DEPS["raycast"]:
-            hits = self._cast(params, caster)
+        # the pixel geometry is rebuilt without a ray cast when the effect set needs an
+        # attribute the cached one lacks (view directions, specular albedo)
+        rebuilt = False
+        if stale("raycast", touched):
+            hits = self._cast(params, caster, versions)
             pixels, pixels_dev, px_hits = self._hits_cache(hits, effects,
-                                                           params.image_size.height)
+                                                           params.image_size.height, stamp)
             geometry, px_albedo = self._pixels(params, effects, s.normals, s.albedo_dev, px_hits,
-                                               pixels_dev)
+                                               pixels_dev, stamp)
             s = s._replace(hits=hits, prim_id=hits.prim_id, bary=hits.bary, pixel_hits=px_hits,
                            pixel_geometry=geometry, pixel_albedo=px_albedo, pixels=pixels,
                            pixels_dev=pixels_dev)
         elif not pixels_satisfy(s.pixel_geometry, s.pixel_albedo, effects):
             geometry, px_albedo = self._pixels(params, effects, s.normals, s.albedo_dev,
-                                               s.pixel_hits, s.pixels_dev)
+                                               s.pixel_hits, s.pixels_dev, stamp)
             s = s._replace(pixel_geometry=geometry, pixel_albedo=px_albedo)
-        elif s.albedo_dev is not state.albedo_dev:
+            rebuilt = True
+        elif albedo_changed:
             s = s._replace(pixel_albedo=Deferred(
-                albedo_stage(effects), {"hits": s.pixel_hits, "albedo_dev": s.albedo_dev}, effects))
-        if (s.pixel_geometry is not state.pixel_geometry
-                or light_effects(effects) != light_effects(state.effects)
-                or touched & (Block.LIGHT | Block.SPECULAR_EXPONENT)):
+                albedo_stage(effects), {"hits": s.pixel_hits, "albedo_dev": s.albedo_dev}, effects,
+                stamp))
+        if (stale("light", touched) or rebuilt
+                or light_effects(effects) != light_effects(state.effects)):
             s = s._replace(pixel_light=self._light(s, effects))
         return s
 
@@ -355,7 +299,7 @@ class Renderer:
             shadow = shadow[state.pixels]
         return Deferred(light_stage(light_effects(effects)),
                         {"geometry": state.pixel_geometry, "packed": state.shading,
-                         "shadow": shadow}, effects)
+                         "shadow": shadow}, effects, state.stamp)
 
     def _shading_inputs(self, state: RenderState, effects: Effects | None):
         eff = state.effects if effects is None else effects
@@ -365,56 +309,11 @@ class Renderer:
             if not pixels_satisfy(state.pixel_geometry, state.pixel_albedo, eff):
                 geometry, albedo = self._pixels(state.params, eff, state.normals,
                                                 state.albedo_dev, state.pixel_hits,
-                                                state.pixels_dev)
+                                                state.pixels_dev, state.stamp)
                 state = state._replace(pixel_geometry=geometry, pixel_albedo=albedo)
             light, albedo = self._light(state, eff), state.pixel_albedo
         return eff, (light.value, albedo.value, state.pixel_hits.mask, state.shading,
                      state.pixels_dev)
-
-    def _image_inputs(self, state: RenderState) -> tuple[frozenset, dict]:
-        """Which pixel attributes :func:`image_stage` computes for ``state``, and its inputs.
-
-        Fresh deferred values are fused into the program; others are read (and
-        computed first when they are not yet).
-        """
-        eff = state.effects
-        caches = {name: getattr(state, field) for name, field in _FUSED_INPUT.items()}
-
-        def fresh(name: str) -> bool:
-            cache = caches[name]
-            return not cache.computed and cache.fresh and cache.effects == eff
-
-        fused = set()
-        if fresh("light"):
-            fused.add("light")
-            if fresh("geometry"):
-                fused.add("geometry")
-        if fresh("albedo"):
-            fused.add("albedo")
-        if fused & {"geometry", "albedo"} and fresh("hits"):
-            fused.add("hits")
-        hits, geometry, albedo, light = (caches[k] for k in ("hits", "geometry", "albedo", "light"))
-        for name in fused:
-            caches[name].fresh = False
-        inputs = {"packed": state.shading, "prim_id": hits.inputs["prim_id"],
-                  "pixels": state.pixels_dev}
-        if "hits" in fused:
-            inputs.update(triangles=hits.inputs["triangles"], bary=hits.inputs["bary"])
-        elif fused & {"geometry", "albedo"}:
-            inputs["hits"] = hits.value
-        if "geometry" in fused:
-            inputs.update({k: geometry.inputs[k] for k in ("normals", "rotation", "view")})
-        elif "light" in fused:
-            inputs["geometry"] = geometry.value
-        if "light" in fused:
-            inputs.update(light_packed=light.inputs["packed"], shadow=light.inputs["shadow"])
-        else:
-            inputs["light"] = light.value
-        if "albedo" in fused:
-            inputs["albedo_dev"] = albedo.inputs["albedo_dev"]
-        else:
-            inputs["albedo"] = albedo.value
-        return frozenset(fused), inputs
 
     def shade(self, state: RenderState, *, effects: Effects | None = None) -> Shaded:
         """Shade the state's cached pixels (device arrays; see :func:`albedo_model.shading.image_formation.shade`).
@@ -429,51 +328,13 @@ class Renderer:
         return combine_stage(eff, _n_pixels(state))(*inputs)
 
     def compose(self, fn: Callable, *, pixel_set: bool = False) -> Callable:
-        """Shading fused with ``fn`` in one ``jit``: ``g(state, *args) -> fn(...)``.
+        """Return ``g(state, *args)``: this renderer's shading fused with ``fn`` in one ``jit``.
 
-        Parameters
-        ----------
-        fn : callable
-            A pure JAX function of the shader output (linear unless the renderer
-            gamma-encodes) and of further arguments (arrays or pytrees, e.g. a
-            target image), typically a likelihood: ``fn(rgb, mask, *args)`` with
-            ``rgb`` three (H W,) float32 arrays and ``mask`` (H W,) bool of the
-            whole image, row-major.
-        pixel_set : bool
-            Call ``fn(rgb, mask, pixels, *args)`` with the shaded pixels of the
-            state's pixel set instead (:attr:`RenderState.pixels`: every pixel
-            whose ray hit and a few misses, ``mask`` telling which): ``rgb``
-            three (C,), ``mask`` (C,), ``pixels`` (C,) int32 row-major pixel
-            indices, or None when the set is the whole image (C = H W, in
-            order). C is always a multiple of the image width. A face covering
-            a third of the image then costs about a third of the per-pixel work
-            (the whole-image form also scatters the set into the image).
-
-        Returns
-        -------
-        callable
-            ``g(state, *args)``: shades ``state`` as :meth:`shade` does and applies
-            ``fn`` inside the same compiled function, returning ``fn``'s (device)
-            result. XLA fuses the per-pixel shading into ``fn``'s reductions, so
-            no image is written out; the pixel attributes the state's step
-            changed and nothing has read yet (fresh :class:`Deferred` values:
-            hits, geometry, albedo, light) are computed in the same loop and
-            not stored. One compile per effect set, argument structure, pixel-set
-            size and set of fresh attributes (a few per proposal kind): keep
-            ``fn`` and the argument shapes fixed. E.g.
-            ``renderer.compose(sq_error)(state, target)`` with
-            ``sq_error(rgb, mask, target) = sum_c sum(where(mask, (rgb[c] - target[c])**2, 0))``.
+        See :func:`albedo_model.render.pixel_work.compose` (``fn(rgb, mask, *args)`` of
+        the whole image, or ``fn(rgb, mask, pixels, *args)`` of the state's pixel set
+        with ``pixel_set``).
         """
-        def composed(state: RenderState, *args):
-            fused, inputs = self._image_inputs(state)
-            n = _n_pixels(state)
-            if not fused and state.pixel_hits.computed:
-                return fused_stage(state.effects, fn, n, pixel_set)(
-                    inputs["light"], inputs["albedo"], state.pixel_hits.mask, inputs["packed"],
-                    state.pixels_dev, *args)
-            return image_stage(state.effects, fn, fused, n, pixel_set)(inputs, *args)
-
-        return composed
+        return compose(fn, pixel_set=pixel_set)
 
     def image(self, state: RenderState) -> Rendered:
         """Shade and return host arrays ``(image (H, W, 3), mask (H, W))``."""
@@ -509,22 +370,11 @@ class Renderer:
                                state.params, caster, names)
 
     def _world_views(self, p: RenderParameter) -> tuple:
-        """What the shader needs for each pixel's view direction (see ``render_state._views``):
-        the pixel coordinates ``(x, y)`` of the image, two (H W,) device arrays cached
-        per image size, and the camera as (14,) float32 (focal lengths and principal
-        point in pixels, orthographic flag, world-to-eye rotation)."""
+        """The pixel coordinates of the image (device, cached per size) and the packed camera."""
         w, h = int(p.image_size.width), int(p.image_size.height)
         if self._views_cache.get("size") != (w, h):
-            ys, xs = np.divmod(np.arange(w * h, dtype=np.int64), w)
-            self._views_cache = {"size": (w, h),
-                                 "coords": jax.device_put((xs.astype(np.float32),
-                                                           ys.astype(np.float32)))}
-        fx, fy = pixel_scale(p.camera, p.image_size)
-        cx, cy = principal_point_px(p.camera, p.image_size)
-        r, _ = eye_from_world(p.view)
-        camera = np.concatenate([[fx, fy, cx, cy, float(bool(p.camera.orthographic))],
-                                 r.reshape(-1)]).astype(np.float32)
-        return self._views_cache["coords"], camera
+            self._views_cache = {"size": (w, h), "coords": jax.device_put(pixel_coordinates(w, h))}
+        return self._views_cache["coords"], packed_camera(p)
 
     def _shadow(self, state: RenderState) -> np.ndarray:
         p = state.params

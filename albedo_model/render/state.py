@@ -1,47 +1,34 @@
-"""What a :class:`~albedo_model.render.renderer.Renderer` caches per scene, and its compiled stages.
+"""What a :class:`~albedo_model.render.renderer.Renderer` caches per scene.
 
 :class:`RenderState` holds, for one set of scene parameters, the host instance,
 the ray-cast buffers, and the device arrays of every stage down to the
-per-pixel attributes the shader reads. The jitted stage functions here are
-compiled once per :class:`~albedo_model.shading.image_formation.Effects` value (and image
-size); they take NumPy arguments where a value is small or used once, since
-passing NumPy into a ``jit`` costs less than a separate ``device_put``.
+per-pixel attributes the shader reads (the stages themselves are in
+:mod:`albedo_model.render.stages`), with the version stamps of its parameter
+blocks (:mod:`albedo_model.render.cache_table`).
 
 The per-pixel attributes are :class:`Deferred`: computed when first read.
 XLA-CPU compiles a program with many per-pixel outputs into about one loop
 per output (35 for the pixel attributes of a ray cast), while what feeds a
-single reduction fuses into a few loops; :func:`image_stage` therefore
-evaluates what a proposal changed inside the likelihood's own program and
-writes nothing out (250x250, specular on: pixel attributes, light and
-likelihood of a ray cast 5.1 ms as stages, 3.0 ms fused; an albedo step's
-gathers and likelihood 3.2 ms and 0.8 ms).
+single reduction fuses into a few loops; :func:`~albedo_model.render.stages.image_stage`
+therefore evaluates what a proposal changed inside the likelihood's own program
+and writes nothing out.
 
-This module imports only ``albedo_model`` modules.
+This module imports :mod:`albedo_model.params`, :mod:`albedo_model.render.cache_table`,
+:mod:`albedo_model.render.raycast` and :mod:`albedo_model.shading.effects`.
 """
 
 from __future__ import annotations
 
-import functools
 from typing import NamedTuple
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
-from albedo_model.shading.interpolation import (
-    PixelGeometry, interpolate_albedo, interpolate_geometry, needs_specular_albedo, needs_view,
-    normalise, pixel_hits,
-)
-from albedo_model.render.normals import vertex_normal_columns
 from albedo_model.params import RenderParameter
+from albedo_model.render.cache_table import BlockVersions
 from albedo_model.render.raycast import RayHits
-from albedo_model.shading.image_formation import (
-    Effects, Shaded, combine_pixels, pixel_light, unpack_shading_params,
-)
+from albedo_model.shading.effects import Effects
 
-__all__ = ["RenderState", "Rendered", "HostAlbedo", "Deferred", "normals_stage", "hits_stage",
-           "geometry_stage", "albedo_stage", "albedo_delta_stage", "light_stage", "light_effects",
-           "combine_stage", "fused_stage", "image_stage", "pixels_satisfy"]
+__all__ = ["RenderState", "Rendered", "HostAlbedo", "Deferred"]
 
 
 class HostAlbedo:
@@ -87,13 +74,15 @@ class Deferred:
     """One per-pixel cache of a render state, computed when first needed.
 
     Holds a :class:`~albedo_model.shading.interpolation.PixelHits`, ``PixelGeometry``,
-    ``PixelAlbedo`` or :class:`~albedo_model.shading.image_formation.PixelLight`: reading an
-    attribute (``.normal``, ``.diffuse``, ...) or :attr:`value` computes it
-    once. :meth:`Renderer.compose <albedo_model.render.renderer.Renderer.compose>` instead
-    evaluates a *fresh* value (created by the step being evaluated, not computed,
-    not used before) inside the likelihood's program (:func:`image_stage`) and
-    marks it used: a rejected proposal never writes its pixel attributes out,
-    and an accepted one computes them when a later step reads them.
+    ``PixelAlbedo`` or :class:`~albedo_model.shading.image_formation.PixelLight`:
+    reading an attribute (``.normal``, ``.diffuse``, ...) or :attr:`value` computes it
+    once (a write-once memo: the value is a pure function of ``inputs``).
+    :meth:`Renderer.compose <albedo_model.render.renderer.Renderer.compose>` instead
+    evaluates a value that the state being evaluated created itself (``stamp``
+    equal to the state's, not yet computed) inside the likelihood's program
+    (:func:`image_stage`), without storing it: a rejected proposal never writes
+    its pixel attributes out, and an accepted one computes them when a later
+    step, whose state shares them, reads them.
 
     Parameters
     ----------
@@ -104,16 +93,19 @@ class Deferred:
         programs read these instead of the value.
     effects : Effects
         The effect set the value is computed for.
+    stamp : int
+        The stamp of the render state that created it (:attr:`RenderState.stamp`).
     """
 
-    __slots__ = ("_stage", "_value", "inputs", "effects", "fresh")
+    __slots__ = ("_stage", "_value", "effects", "inputs", "stamp")
 
-    def __init__(self, stage, inputs: dict, effects: Effects):
+    def __init__(self, stage, inputs: dict, effects: Effects, stamp: int = 0):
         self._stage, self._value = stage, None
-        self.inputs, self.effects, self.fresh = inputs, effects, True
+        self.inputs, self.effects, self.stamp = inputs, effects, int(stamp)
 
     @property
     def computed(self) -> bool:
+        """True once the value has been computed and stored."""
         return self._value is not None
 
     @property
@@ -122,7 +114,6 @@ class Deferred:
         if self._value is None:
             args = {k: v.value if isinstance(v, Deferred) else v for k, v in self.inputs.items()}
             self._value = self._stage(**args)
-            self.fresh = False
         return self._value
 
     def __getattr__(self, name: str):
@@ -178,6 +169,14 @@ class RenderState(NamedTuple):
         The caches' ``(P,)`` arrays above are then ``(C,)``; :meth:`full`
         expands one to the image, and the shading stages return whole images.
     pixels_dev : device copy of ``pixels`` (or None)
+    versions : BlockVersions
+        One version stamp per parameter block (:mod:`albedo_model.render.cache_table`):
+        caches of products of this state are keyed on the stamps of the blocks
+        their stage reads.
+    stamp : int
+        A stamp of this state alone (new for every :meth:`Renderer.update
+        <albedo_model.render.renderer.Renderer.update>`); the per-pixel caches it
+        created carry it.
     """
 
     params: RenderParameter
@@ -199,6 +198,8 @@ class RenderState(NamedTuple):
     updates: tuple[int, int] = (0, 0)
     pixels: np.ndarray | None = None
     pixels_dev: object = None
+    versions: BlockVersions | None = None
+    stamp: int = 0
 
     def positions(self, indices: np.ndarray) -> np.ndarray:
         """Where pixels (row-major indices, all in the pixel set) sit in the caches' arrays."""
@@ -256,198 +257,3 @@ class Rendered(NamedTuple):
     image: np.ndarray
     mask: np.ndarray
     state: RenderState
-
-
-def _split_albedo(effects: Effects, albedo_dev):
-    """(diffuse, specular or None) as (n, 3) arrays from the (rows, 3n) device albedo."""
-    diffuse = albedo_dev[0].reshape(-1, 3)
-    specular = albedo_dev[1].reshape(-1, 3) if needs_specular_albedo(effects) else None
-    return diffuse, specular
-
-
-normals_stage = jax.jit(vertex_normal_columns)
-normals_stage.__doc__ = "Jitted :func:`albedo_model.render.normals.vertex_normal_columns`."
-
-
-def _at_pixels(values, pixels):
-    """Per-pixel ``values`` (whole image) at the pixel set, or all of them when None."""
-    return values if pixels is None else values[pixels]
-
-
-@jax.jit
-def hits_stage(triangles, prim_id, bary, pixels):
-    """:func:`albedo_model.shading.interpolation.pixel_hits` of the whole-image ray-cast buffers
-    ``prim_id`` (H W,) and ``bary`` (H W, 2) at the pixel set ``pixels`` (or all)."""
-    return pixel_hits(triangles, _at_pixels(prim_id, pixels), _at_pixels(bary, pixels))
-
-
-def _views(view, pixels):
-    """Unit directions from the pixels' surface points towards the eye, world frame.
-
-    ``view`` is ``((x, y), camera)`` as :meth:`Renderer._world_views` packs it: pixel
-    coordinates of the image and (fx, fy, cx, cy, orthographic, R (3x3) world to
-    eye). Eye rays are ``((x - cx) / fx, -(y - cy) / fy, -1)`` (orthographic:
-    ``(0, 0, -1)``), a world direction is ``R^T`` of an eye direction, and the
-    view direction is the reverse ray. Computed per pixel here rather than cached
-    per camera: the sampler's camera proposals would miss any cache.
-    """
-    (xs, ys), cam = view
-    if pixels is not None:
-        xs, ys = xs[pixels], ys[pixels]
-    perspective = cam[4] < 0.5
-    a = jnp.where(perspective, (xs - cam[2]) / cam[0], 0.0)
-    b = jnp.where(perspective, (cam[3] - ys) / cam[1], 0.0)
-    r = cam[5:].reshape(3, 3)
-    world = [a * r[0, c] + b * r[1, c] - r[2, c] for c in range(3)]
-    return normalise(-world[0], -world[1], -world[2])
-
-
-def _geometry(effects: Effects, hits, normals, rotation, view, pixels) -> PixelGeometry:
-    no_view = effects._replace(specular=False, directional=False)
-    geometry = interpolate_geometry(no_view, hits, normals, None, rotation)
-    return geometry._replace(view=None if view is None else _views(view, pixels))
-
-
-@functools.cache
-def geometry_stage(effects: Effects):
-    """Jitted ``f(hits, normals, rotation, view, pixels) -> PixelGeometry`` (``view`` as
-    :func:`_views` reads it when :func:`~albedo_model.shading.interpolation.needs_view`, else
-    None; ``pixels`` the state's device pixel set or None)."""
-    return jax.jit(functools.partial(_geometry, effects))
-
-
-def _expand(out: Shaded, pixels, n_pixels: int, background) -> Shaded:
-    """Shader output of a pixel set scattered into whole-image arrays (background elsewhere)."""
-    if pixels is None:
-        return out
-
-    def put(values, fill):
-        full = jnp.full(n_pixels, fill, values.dtype)
-        return full.at[pixels].set(values, indices_are_sorted=True, unique_indices=True)
-
-    rgb = tuple(put(out.rgb[c], background[c]) for c in range(3))
-    return Shaded(rgb=rgb, mask=put(out.mask, False))
-
-
-@functools.cache
-def albedo_stage(effects: Effects):
-    """Jitted ``f(hits, albedo_dev) -> PixelAlbedo``, after an albedo change."""
-    def albedo(hits, albedo_dev):
-        return interpolate_albedo(effects, hits, *_split_albedo(effects, albedo_dev))
-    return jax.jit(albedo)
-
-
-@jax.jit
-def albedo_delta_stage(albedo_dev, basis_t, idx, delta):
-    """``albedo_dev`` plus ``sum_j delta_j basis_t[idx_j]`` in its leading ``basis_t.shape[1]``
-    entries (flattened), in one fused pass over the changed rows of the transposed basis:
-    about as fast as the same product in NumPy, and no host-to-device copy.
-
-    Kept out of the interpolation's ``jit``: there XLA fuses the row sum into every
-    gather of the albedo and recomputes it per pixel (ten times slower).
-    """
-    flat = albedo_dev.reshape(-1)
-    width = basis_t.shape[1]
-    head = flat[:width]
-    for j in range(idx.shape[0]):
-        head = head + delta[j] * jax.lax.dynamic_index_in_dim(basis_t, idx[j], keepdims=False)
-    flat = head if width == flat.shape[0] else jnp.concatenate([head, flat[width:]])
-    return flat.reshape(albedo_dev.shape)
-
-
-def light_effects(effects: Effects) -> Effects:
-    """The switches :func:`albedo_model.shading.image_formation.pixel_light` depends on (others at defaults)."""
-    return effects._replace(color_transform=False, gamma=False, clamp=True)
-
-
-@functools.cache
-def light_stage(effects: Effects):
-    """Jitted ``f(geometry, packed, shadow) -> PixelLight``."""
-    def light(geometry, packed, shadow):
-        return pixel_light(effects, geometry, unpack_shading_params(packed), shadow)
-    return jax.jit(light)
-
-
-@functools.cache
-def combine_stage(effects: Effects, n_pixels: int):
-    """Jitted ``f(light, albedo, mask, packed, pixels) -> Shaded`` of the whole image
-    (``n_pixels`` = H W; ``pixels`` the state's device pixel set or None)."""
-    def combine(light, albedo, mask, packed, pixels) -> Shaded:
-        params = unpack_shading_params(packed)
-        out = combine_pixels(effects, light, albedo, mask, params)
-        return _expand(out, pixels, n_pixels, params.background)
-    return jax.jit(combine)
-
-
-def _apply(fn, out: Shaded, pixels, n_pixels: int, params, pixel_set: bool, args):
-    """``fn`` of shaded pixels: on the pixel set, or on the whole image."""
-    if pixel_set:
-        return fn(out.rgb, out.mask, pixels, *args)
-    out = _expand(out, pixels, n_pixels, params.background)
-    return fn(out.rgb, out.mask, *args)
-
-
-@functools.cache
-def fused_stage(effects: Effects, fn, n_pixels: int, pixel_set: bool = False):
-    """Jitted ``f(light, albedo, mask, packed, pixels, *args) -> fn(...)``.
-
-    ``fn(rgb, mask, *args)`` of the whole image (``n_pixels`` = H W), or with
-    ``pixel_set`` ``fn(rgb, mask, pixels, *args)`` of the state's pixel set.
-    Cached per (effect set, ``fn``, image size, ``pixel_set``): every renderer
-    composing the same function shares one compiled program per argument shape
-    (no recompile per fit).
-    """
-    def fused(light, albedo, mask, packed, pixels, *args):
-        params = unpack_shading_params(packed)
-        out = combine_pixels(effects, light, albedo, mask, params)
-        return _apply(fn, out, pixels, n_pixels, params, pixel_set, args)
-    return jax.jit(fused)
-
-
-@functools.cache
-def image_stage(effects: Effects, fn, fused: frozenset, n_pixels: int, pixel_set: bool = False):
-    """Jitted ``f(inputs, *args) -> fn(rgb, mask, *args)`` computing the pixel attributes
-    named in ``fused`` (of "hits", "geometry", "albedo", "light") on the way.
-
-    ``inputs`` is a dict: always ``packed`` (shading parameters), ``prim_id`` (of the whole
-    image) and ``pixels`` (the pixel set, or None); ``triangles``, ``bary`` with "hits" fused,
-    else ``hits`` when geometry or albedo are; ``normals``, ``rotation``, ``view`` with
-    "geometry", else ``geometry`` when the light is fused; ``light_packed``, ``shadow`` with
-    "light", else ``light``; ``albedo_dev`` with "albedo", else ``albedo``. One loop over the
-    pixel set reads the per-vertex arrays and reduces into ``fn``'s result: ``fn(rgb, mask,
-    pixels, *args)`` of the pixel set with ``pixel_set``, else ``fn(rgb, mask, *args)`` of the
-    whole image (``n_pixels`` = H W; the shaded pixels are scattered into it). Cached per
-    (effect set, ``fn``, ``fused``, image size, ``pixel_set``).
-    """
-    def image(inputs, *args):
-        pixels = inputs["pixels"]
-        prim_id = _at_pixels(inputs["prim_id"], pixels)
-        if "hits" in fused:
-            hits = pixel_hits(inputs["triangles"], prim_id, _at_pixels(inputs["bary"], pixels))
-        else:
-            hits = inputs.get("hits")
-        if "geometry" in fused:
-            geometry = _geometry(effects, hits, inputs["normals"], inputs["rotation"],
-                                 inputs["view"], inputs["pixels"])
-        else:
-            geometry = inputs.get("geometry")
-        if "light" in fused:
-            light = pixel_light(light_effects(effects), geometry,
-                                unpack_shading_params(inputs["light_packed"]), inputs["shadow"])
-        else:
-            light = inputs["light"]
-        if "albedo" in fused:
-            albedo = interpolate_albedo(effects, hits,
-                                        *_split_albedo(effects, inputs["albedo_dev"]))
-        else:
-            albedo = inputs["albedo"]
-        params = unpack_shading_params(inputs["packed"])
-        out = combine_pixels(effects, light, albedo, prim_id >= 0, params)
-        return _apply(fn, out, pixels, n_pixels, params, pixel_set, args)
-    return jax.jit(image)
-
-
-def pixels_satisfy(geometry: Deferred, albedo: Deferred, effects: Effects) -> bool:
-    """True when (deferred) pixel attributes hold everything ``effects`` reads."""
-    return ((needs_view(geometry.effects) or not needs_view(effects))
-            and (needs_specular_albedo(albedo.effects) or not needs_specular_albedo(effects)))

@@ -13,7 +13,7 @@ from typing import NamedTuple
 from albedo_model.params import RenderParameter
 from albedo_model.sh import MAX_SH_COEFFICIENTS
 
-__all__ = ["Effects", "effects_for"]
+__all__ = ["Effects", "effects_for", "offset_count"]
 
 
 class Effects(NamedTuple):
@@ -49,6 +49,15 @@ class Effects(NamedTuple):
     gamma: bool = False
     clamp: bool = True
     directional_specular_map: bool = False
+
+
+def offset_count(effects: Effects) -> float:
+    """Return how often the colour transform's offset enters a pixel: 2 with specular, else 1.
+
+    The transform is affine and AlbedoMM applies it to the diffuse and the
+    specular image separately, so ``T(D) + T(S) = T_linear(D + S) + 2 offset``.
+    """
+    return 2.0 if effects.specular else 1.0
 
 
 def effects_for(

@@ -51,8 +51,9 @@ import numpy as np
 from albedo_model.shading.interpolation import (
     PixelAlbedo, PixelGeometry, interpolate_albedo, interpolate_geometry, normalise, pixel_hits,
 )
+from albedo_model.params import LUMA
 from albedo_model.sh import LAMBERT_FACTORS, MAX_SH_COEFFICIENTS, SH_NORMALISATION
-from albedo_model.shading.effects import Effects, effects_for
+from albedo_model.shading.effects import Effects, effects_for, offset_count
 from albedo_model.shading.scalars import (
     PACKED_SIZE, ShadingParams, pack_shading_params, shading_params, unpack_shading_params,
 )
@@ -67,7 +68,6 @@ __all__ = [
 GAMMA = 2.2
 _GAMMA_EPS = 1e-8
 _POW_EPS = 1e-30
-_LUMA = (0.3, 0.59, 0.11)
 
 
 class Shaded(NamedTuple):
@@ -114,7 +114,7 @@ def _sh_lambert(weights: jax.Array, k: int, x, y, z) -> list:
 
 
 def _luma(c):
-    return _LUMA[0] * c[0] + _LUMA[1] * c[1] + _LUMA[2] * c[2]
+    return LUMA[0] * c[0] + LUMA[1] * c[1] + LUMA[2] * c[2]
 
 
 def _check(effects: Effects) -> None:
@@ -231,11 +231,10 @@ def combine_pixels(effects: Effects, light: PixelLight, albedo: PixelAlbedo, mas
     if light.constant is not None:
         total = [total[c] + light.constant[c] for c in range(3)]
     if effects.color_transform:
-        # The transform is affine, so T(D) + T(S) = T_linear(D + S) + 2 offset:
-        # AlbedoMM applies it to D and S separately and the offset counts twice.
+        # ColorTransform.matrix applied channel by channel (fused into the pixel loop)
         kappa = params.color_contrast
         y = (1.0 - kappa) * _luma(total)
-        n_offsets = 2.0 if effects.specular else 1.0
+        n_offsets = offset_count(effects)
         total = [
             params.color_gain[c] * (kappa * total[c] + y) + n_offsets * params.color_offset[c]
             for c in range(3)

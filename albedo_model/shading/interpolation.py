@@ -85,12 +85,12 @@ class PixelAlbedo(NamedTuple):
 
 
 def needs_view(effects: Effects) -> bool:
-    """True when shading reads the view direction (specular or directional light)."""
+    """Return whether shading reads the view direction (specular or directional light)."""
     return bool(effects.specular or effects.directional)
 
 
 def needs_specular_albedo(effects: Effects) -> bool:
-    """True when shading reads the specular albedo."""
+    """Return whether shading reads the specular albedo."""
     return bool(effects.specular or effects.directional_specular_map)
 
 

@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from albedo_model.params import LUMA
 from albedo_model.sh import LAMBERT_FACTORS, MAX_SH_COEFFICIENTS, SH_NORMALISATION
 from albedo_model.shading.image_formation import GAMMA, Effects, Shaded, ShadingParams
 
@@ -32,7 +33,7 @@ def _sh_matrix(d: jax.Array) -> jax.Array:
 
 
 def _transform(c, gain, contrast, offset, on):
-    luma = c @ jnp.asarray([0.3, 0.59, 0.11], jnp.float32)
+    luma = c @ jnp.asarray(LUMA, jnp.float32)
     out = gain * (contrast * c + (1.0 - contrast) * luma[:, None]) + offset
     return on * out + (1.0 - on) * c
 

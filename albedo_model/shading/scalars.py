@@ -72,7 +72,9 @@ del _start, _name, _n
 def pack_shading_params(
     params: RenderParameter, rotation: np.ndarray, *, background=(0.0, 0.0, 0.0)
 ) -> np.ndarray:
-    """The scene scalars of the shading as one host float32 vector (:func:`unpack_shading_params`).
+    """Pack the scene scalars of the shading into one host float32 vector.
+
+    :func:`unpack_shading_params` is the inverse.
 
     Parameters
     ----------

@@ -12,7 +12,8 @@ seeds
 face_boxes
     The default face box of LFW's 250x250 crops.
 task
-    :class:`FitTask` and :func:`run_task`, the function a worker runs.
+    :class:`~mcmcfit.batch.task.FitTask` and :func:`~mcmcfit.batch.task.run_task`, the
+    function a worker runs.
 records
     The ``batch.jsonl`` fields of a finished image (acceptance, landmark RMS,
     albedo digest).
@@ -23,7 +24,7 @@ journal
 pool_runner, dask_runner
     Run tasks on a local process pool or a Dask distributed cluster.
 run
-    :func:`run_batch`: plan, run, journal, progress bar.
+    :func:`~mcmcfit.batch.run.run_batch`: plan, run, journal, progress bar.
 report_data, report_plots, report
     ``mcmcfit batch-report``: rows per image, plots, the HTML page and the CSV.
 
@@ -35,5 +36,9 @@ Layout of OUT::
 
 The heavy modules (fitting, JAX) are imported only inside the worker's task,
 so that importing this package is cheap and a spawned worker can limit its
-threads before JAX starts.
+threads before JAX starts. (:mod:`mcmcfit.batch.run`, used by the parent
+process only, imports :mod:`mcmcfit.fitting.config` and with it JAX.)
+
+This file imports nothing; its modules import :mod:`albedo_model` (``errors``,
+``io.atomic``), :mod:`mcmcfit.fitting.config` and :mod:`mcmcfit.jobs.fit_job`.
 """

@@ -20,8 +20,8 @@ cluster started by someone else, :func:`run_task` sets them before the first
 fit when the user has not (start workers with ``--nthreads 1`` and, ideally,
 ``OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1``).
 
-This module imports :mod:`mcmcfit.batch` modules; :mod:`distributed` is
-imported when a batch runs.
+This module imports :mod:`mcmcfit.batch` modules; :mod:`distributed` and
+:mod:`albedo_model.errors` are imported when a batch runs.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ __all__ = ["dask_outcomes", "task_key"]
 
 
 def task_key(task: FitTask) -> str:
-    """A readable, unique Dask key for one image's task."""
+    """Return a readable, unique Dask key for one image's task."""
     return f"mcmcfit-fit-{task.relative}-{uuid.uuid4().hex[:8]}"
 
 

@@ -110,7 +110,7 @@ def _read_list(list_file: Path) -> list[tuple[Path, str]]:
 
 def list_images(input_path: str | os.PathLike, *, exclude: list[Path] | None = None
                 ) -> list[tuple[Path, str]]:
-    """The images of a batch as ``(absolute path, source name)`` pairs.
+    """List the images of a batch as ``(absolute path, source name)`` pairs.
 
     Parameters
     ----------
@@ -143,7 +143,7 @@ def _glob_landmarks(image: Path, rel: PurePosixPath, pattern: str) -> list[Path]
 def find_landmarks(image: Path, relative: PurePosixPath, *,
                    landmarks_dir: str | os.PathLike | None = None,
                    landmarks_glob: str | None = None) -> tuple[Path | None, str, bool]:
-    """The landmark file of one image, or None with the reason it was not found.
+    """Find the landmark file of one image, or None with the reason it was not found.
 
     Parameters
     ----------
@@ -186,7 +186,7 @@ def find_landmarks(image: Path, relative: PurePosixPath, *,
 def discover(input_path: str | os.PathLike, *, exclude: list[Path] | None = None,
              landmarks_dir: str | os.PathLike | None = None, landmarks_glob: str | None = None,
              allow_face_box: bool = False) -> tuple[list[BatchItem], list[Skipped]]:
-    """The images to fit and those skipped (no landmarks, unusable name, clashing output).
+    """Find the images to fit and those skipped (no landmarks, unusable name, clashing output).
 
     Parameters
     ----------

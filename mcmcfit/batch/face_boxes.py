@@ -28,7 +28,7 @@ LFW_FACE_BOX_FRACTIONS = (0.5 - _HALF, 0.5 - _HALF, 0.5 + _HALF, 0.5 + _HALF)
 
 
 def lfw_face_box(width: int, height: int) -> tuple[float, float, float, float]:
-    """The default face box ``(x0, y0, x1, y1)`` in pixels for an image of this size.
+    """Return the default face box ``(x0, y0, x1, y1)`` in pixels for an image of this size.
 
     Parameters
     ----------

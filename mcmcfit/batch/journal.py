@@ -69,7 +69,7 @@ def append_line(path: str | os.PathLike, record: dict) -> None:
 
 
 def read_journal(path: str | os.PathLike) -> list[dict]:
-    """The records of a journal, in file order; a missing file gives ``[]``.
+    """Read the records of a journal, in file order; a missing file gives ``[]``.
 
     Lines that are not a complete JSON object (a truncated write) are skipped.
     """

@@ -43,7 +43,7 @@ def _clean_component(part: str) -> str:
 
 
 def safe_relative(path: str | os.PathLike) -> PurePosixPath:
-    """A relative POSIX path for ``path`` that cannot leave the folder it is joined to.
+    r"""Return a relative POSIX path for ``path`` that cannot leave the folder it is joined to.
 
     The extension of the last component is dropped. ``..`` becomes ``_up``
     (so ``../../etc/x.jpg`` gives ``_up/_up/etc/x``), an absolute path's anchor
@@ -54,7 +54,7 @@ def safe_relative(path: str | os.PathLike) -> PurePosixPath:
     ----------
     path : str or path-like
         An input path as given, relative (to the input root) or absolute;
-        ``/`` and ``\\`` both separate components.
+        ``/`` and ``\`` both separate components.
 
     Returns
     -------
@@ -102,7 +102,7 @@ def result_dir(out_root: str | os.PathLike, relative: PurePosixPath) -> Path:
 
 
 def is_complete(folder: str | os.PathLike) -> bool:
-    """True when ``folder`` is a finished result folder (it holds ``summary.json``)."""
+    """Return whether ``folder`` is a finished result folder (it holds ``summary.json``)."""
     return (Path(folder) / COMPLETE_MARKER).is_file()
 
 

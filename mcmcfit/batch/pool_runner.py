@@ -27,7 +27,7 @@ __all__ = ["pool_outcomes", "lost_outcome"]
 
 
 def lost_outcome(task: FitTask, reason: str) -> dict:
-    """The outcome of a task whose worker never returned."""
+    """Return the outcome of a task whose worker never returned."""
     return {"path": task.source, "relative": task.relative, "seed": task.seed,
             "status": "failed", "seconds": None, "reason": reason,
             "error_type": "WorkerLost"}

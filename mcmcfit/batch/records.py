@@ -22,7 +22,10 @@ __all__ = ["overall_acceptance", "albedo_digest", "finished_record", "record_fro
 
 
 def overall_acceptance(acceptance: dict | None) -> float | None:
-    """Accepted / proposed summed over proposals (``summary["acceptance"]``); None without any."""
+    """Return accepted / proposed summed over proposals (``summary["acceptance"]``).
+
+    None when there are no proposals.
+    """
     if not acceptance:
         return None
     proposed = sum(int(v.get("proposed", 0)) for v in acceptance.values())

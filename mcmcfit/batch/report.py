@@ -6,8 +6,9 @@ their reasons, and a table with one row per image linking to the image's own
 ``report.html`` (relative links, valid when the page sits in OUT). The CSV has
 the same rows (:data:`mcmcfit.batch.report_data.CSV_COLUMNS`).
 
-This module imports :mod:`mcmcfit.batch` modules and the standard library
-(matplotlib through the plots).
+This module imports :mod:`mcmcfit.batch.report_data`,
+:mod:`mcmcfit.batch.report_plots` (matplotlib), :mod:`mcmcfit.outputs.html_style`
+and, when writing, :mod:`albedo_model.io.atomic`.
 """
 
 from __future__ import annotations
@@ -20,15 +21,12 @@ from pathlib import Path
 
 from mcmcfit.batch.report_data import batch_rows, write_csv
 from mcmcfit.batch.report_plots import albedo_per_subject_png, failures_png, histogram_png
+from mcmcfit.outputs.html_style import base_css
 
 __all__ = ["render_batch_report", "write_batch_report"]
 
-_CSS = """
-body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; max-width: 1200px; }
-h1 { font-size: 1.4em; } h2 { font-size: 1.15em; margin-top: 1.5em; border-bottom: 1px solid #ccc; }
-table { border-collapse: collapse; font-size: 0.8em; margin: 0.5em 0; }
-td, th { border: 1px solid #ccc; padding: 2px 6px; text-align: right; }
-th { background: #f2f2f2; } td.l, th.l { text-align: left; }
+_CSS = "\n" + base_css(max_width="1200px", h2_margin_top="1.5em", table_font_size="0.8em",
+                       cell_padding="2px 6px") + """\
 tr.failed td { background: #fde8ea; } tr.skipped td { background: #fbf6dc; }
 img.plot { margin: 0.3em; border: 1px solid #ddd; vertical-align: top; }
 span.sw { display: inline-block; width: 1em; height: 1em; border: 1px solid #555;
@@ -90,7 +88,7 @@ def _table(rows: list[dict], link_base: str | None) -> str:
 
 
 def render_batch_report(rows: list[dict], *, title: str, link_base: str | None = "") -> str:
-    """The HTML page for ``rows`` (:func:`mcmcfit.batch.report_data.batch_rows`).
+    """Build the HTML page for ``rows`` (:func:`mcmcfit.batch.report_data.batch_rows`).
 
     Parameters
     ----------

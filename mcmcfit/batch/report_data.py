@@ -8,7 +8,8 @@ in an earlier run and failing in a later ``--force`` run keep their result
 first component of its relative path (LFW: ``Name/Name_0001``), or ``"."`` for
 an image at the top of INPUT.
 
-This module imports :mod:`mcmcfit.batch` modules and the standard library.
+This module imports :mod:`mcmcfit.batch` modules, the standard library and, when
+it writes the CSV, :mod:`albedo_model.io.atomic`.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ CSV_COLUMNS = ("subject", "path", "relative", "status", "seconds", "fit_seconds"
 
 
 def subject_of(relative: str) -> str:
-    """The top-level folder of a relative path (the LFW subject), ``"."`` at the top."""
+    """Return the top-level folder of a relative path (the LFW subject), ``"."`` at the top."""
     parts = PurePosixPath(relative).parts
     return parts[0] if len(parts) > 1 else "."
 

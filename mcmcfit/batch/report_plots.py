@@ -101,7 +101,7 @@ def albedo_per_subject_png(rows: list[dict], *, max_subjects: int = MAX_SUBJECTS
 
 
 def failures_png(rows: list[dict]) -> bytes:
-    """Counts of images per outcome: fitted, and failed / skipped by error type."""
+    """Plot counts of images per outcome: fitted, and failed / skipped by error type."""
     counts: Counter = Counter()
     for r in rows:
         if r.get("status") == "ok":

@@ -12,7 +12,8 @@ A complete folder that has no ``batch.jsonl`` line (the batch was killed
 between the rename and the journal write) gets its line on the next run,
 marked ``"recovered": true``, so the journal ends with one line per result.
 
-This module imports :mod:`mcmcfit` and the standard library.
+This module imports :mod:`mcmcfit.batch` modules, :mod:`mcmcfit.fitting.config`
+(which loads JAX) and the standard library; tqdm is imported when a batch runs.
 """
 
 from __future__ import annotations

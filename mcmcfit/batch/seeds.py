@@ -19,7 +19,7 @@ _DOMAIN = b"mcmcfit-batch-seed-v1"
 
 
 def image_seed(root_seed: int, relative: PurePosixPath | str) -> int:
-    """The seed of one image: 63 bits of SHA-256 over the root seed and the path.
+    """Return the seed of one image: 63 bits of SHA-256 over the root seed and the path.
 
     Parameters
     ----------

@@ -8,7 +8,8 @@ one-line reason, so one bad image never stops the batch. The worker writes the
 image's result folder (atomically); the journals are written by the batch's
 parent process from the outcomes.
 
-This module imports :mod:`mcmcfit.batch` modules; the fit modules are imported
+This module imports :mod:`mcmcfit.batch` modules; :mod:`albedo_model.errors`,
+:mod:`mcmcfit.fitting.config` and :mod:`mcmcfit.jobs.fit_job` are imported
 when a task runs.
 """
 
@@ -74,6 +75,7 @@ class FitTask:
     threads: int = 1
 
     def to_dict(self) -> dict:
+        """Return the fields as a plain dict."""
         return asdict(self)
 
 

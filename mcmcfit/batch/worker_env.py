@@ -86,7 +86,7 @@ def pin_to_cores(slot: int) -> list[int]:
 
 
 def init_pool_worker(env: dict[str, str], counter=None) -> None:
-    """Initialiser of a spawned pool worker: die with the parent, thread limits, core pinning.
+    """Initialise a spawned pool worker: die with the parent, thread limits, core pinning.
 
     Parameters
     ----------

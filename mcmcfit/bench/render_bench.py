@@ -20,12 +20,13 @@ Model: :func:`mcmcfit.bench.synthetic_face.synthetic_face_model` (53,824
 vertices, 106,722 triangles; shape 50 + expression 5, albedo 50 shared), seen
 frontally so that the face covers about 60 % of the pixels.
 
+The result records and the table are in :mod:`mcmcfit.bench.render_report`.
+
 This module imports ``albedo_model`` and ``mcmcfit.bench``.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -42,6 +43,7 @@ from albedo_model.camera import camera_rays
 from albedo_model.render.raycast import RayCaster, default_threads, embree_pass
 from albedo_model.render.renderer import Renderer
 from mcmcfit.bench.naive_step import NaiveStep
+from mcmcfit.bench.render_report import MIX, BenchResult, BenchRow, format_table
 from mcmcfit.bench.synthetic_face import synthetic_face_model
 
 __all__ = ["KINDS", "MIX", "BenchRow", "BenchResult", "face_scene", "run_render_bench",
@@ -51,51 +53,6 @@ __all__ = ["KINDS", "MIX", "BenchRow", "BenchResult", "face_scene", "run_render_
 KINDS = {"pose": Block.POSE, "shape": Block.SHAPE, "albedo": Block.ALBEDO, "light": Block.LIGHT}
 _BLOCK = 10  # coefficients per shape / albedo proposal
 _SIGMA = 0.05  # pixel noise of the likelihood (linear RGB)
-
-
-@dataclasses.dataclass(frozen=True)
-class BenchRow:
-    """ms per step of one proposal kind at one image size.
-
-    ``ours_ms``, ``ours_no_specular_ms`` and ``naive_ms`` are medians of chains
-    making only this kind of proposal (steady state, as performance-notes.md §4
-    measured); ``mixed_ms`` / ``mixed_mean_ms`` the median / mean of this kind's
-    steps in a chain mixing all kinds as a sampler does (colder caches, and the
-    first step after an accepted geometry builds the per-pixel caches).
-    """
-
-    size: int
-    kind: str
-    ours_ms: float
-    ours_no_specular_ms: float
-    naive_ms: float
-    coverage: float
-    mixed_ms: float
-    mixed_mean_ms: float
-    naive_mean_ms: float
-
-    @property
-    def speedup(self) -> float:
-        """naive / ours."""
-        return self.naive_ms / self.ours_ms
-
-
-@dataclasses.dataclass(frozen=True)
-class BenchResult:
-    """All rows plus the machine facts the table prints."""
-
-    rows: list[BenchRow]
-    cores: int
-    threads: int
-    update_method: str
-    steps: int
-    build_s: float
-    n_vertices: int
-    n_triangles: int
-    embree_ms: float
-    embree_bare_ms: float
-    load_before: tuple[float, float, float]
-    load_after: tuple[float, float, float]
 
 
 def face_scene(model, size: int, coverage: float = 0.6) -> RenderParameter:
@@ -150,7 +107,7 @@ def _log_lik_on_set(rgb, mask, pixels, target, inv_two_var):
 
 
 def _target(renderer: Renderer, params: RenderParameter, rng: np.random.Generator):
-    """A fixed target: the scene with other albedo and light, plus noise (device arrays)."""
+    """Make a fixed target: the scene with other albedo and light, plus noise (device arrays)."""
     m = params.momo
     other = params._replace(
         momo=m._replace(albedo=rng.normal(0, 0.5, len(m.albedo))),
@@ -204,7 +161,7 @@ class _Chain:
         self.params = params
 
     def step(self, target, inv) -> None:
-        """The next proposal of the cycle, its log-likelihood, and accept or reject."""
+        """Make the next proposal of the cycle, evaluate it, and accept or reject it."""
         kind = self.cycle[self.i % len(self.cycle)]
         n = self.counts[kind]
         proposed = _proposal(self.params, kind, n, self.rng)
@@ -287,9 +244,10 @@ def _time_size(model, size: int, steps: int, warmup: int, naive_steps: int, thre
 
 
 def _embree_reference(model, size: int = 250, repeats: int = 15) -> tuple[float, float]:
-    """Median ms of one single-threaded :meth:`RayCaster.cast` of the mean face at ``size``²,
-    and of the bare Embree query inside it (:func:`albedo_model.render.raycast.embree_pass`),
-    timed alternately.
+    """Time a single-threaded ray cast of the mean face at ``size``², with and without bookkeeping.
+
+    Median ms of one :meth:`RayCaster.cast` and of the bare Embree query inside
+    it (:func:`albedo_model.render.raycast.embree_pass`), timed alternately.
 
     A yardstick of the machine: ``performance-notes.md`` measured 6.6 ms for the
     bare Embree call on its 53k-vertex face (1 thread, non-robust traversal, 62 %
@@ -363,81 +321,3 @@ def run_render_bench(sizes: Sequence[int] = (128, 250, 512), steps: int = 40, *,
     return BenchResult(rows, int(cores or 1), threads, method, steps, build_s, model.n_vertices,
                        model.n_triangles, embree_ms, embree_bare_ms, load_before,
                        os.getloadavg())
-
-
-#: Proposal mix of the steps/s summary (as in performance-notes.md §4).
-MIX = {"shape": 0.4, "pose": 0.2, "albedo": 0.2, "light": 0.2}
-
-
-def format_table(result: BenchResult) -> str:
-    """The benchmark table as text.
-
-    "ours", "no-spec" and "naive" are medians of one-kind chains; "mixed" and
-    "mixed mean" the median and mean of the kind's steps in the mixed chain (the
-    mean also counts the steps that first build the per-pixel caches of a newly
-    accepted geometry). The steps/s lines are the mixed chain's throughput and
-    the naive path's, weighted by :data:`MIX`.
-    """
-    lines = [
-        f"cores: {result.cores}  ray-cast threads: {result.threads}  "
-        f"embree update: {result.update_method}  steps: {result.steps} (median)  "
-        f"jax {jax.__version__}",
-        f"model: {result.n_vertices} vertices, {result.n_triangles} triangles "
-        f"(built in {result.build_s:.2f} s)",
-        f"machine yardstick: 1-thread ray cast of the face at 250x250 {result.embree_ms:.1f} ms, "
-        f"bare Embree {result.embree_bare_ms:.1f} ms "
-        f"(performance-notes.md, bare Embree on its machine: 6.6 ms)",
-        f"load average (1 min) before {result.load_before[0]:.2f}, "
-        f"after {result.load_after[0]:.2f}",
-        f"{'size':>7s} {'kind':>7s} {'ours ms':>8s} {'no-spec ms':>10s} {'spec +ms':>8s} "
-        f"{'naive ms':>9s} {'naive/ours':>10s} {'face px':>7s} {'mixed ms':>8s} "
-        f"{'mixed mean':>10s}",
-    ]
-    for r in result.rows:
-        lines.append(f"{r.size:>3d}x{r.size:<3d} {r.kind:>7s} {r.ours_ms:8.2f} "
-                     f"{r.ours_no_specular_ms:10.2f} {r.ours_ms - r.ours_no_specular_ms:8.2f} "
-                     f"{r.naive_ms:9.1f} {r.speedup:10.1f} {r.coverage:7.1%} "
-                     f"{r.mixed_ms:8.2f} {r.mixed_mean_ms:10.2f}")
-    for size in dict.fromkeys(r.size for r in result.rows):
-        ms = {r.kind: r for r in result.rows if r.size == size}
-        if set(MIX) <= set(ms):
-            mixed = sum(w * ms[k].mixed_mean_ms for k, w in MIX.items())
-            naive = sum(w * ms[k].naive_mean_ms for k, w in MIX.items())
-            lines.append(f"{size}x{size} mixed 40/20/20/20 (shape/pose/albedo/light): "
-                         f"{1e3 / mixed:.0f} steps/s, naive {1e3 / naive:.1f} steps/s "
-                         f"({naive / mixed:.0f}x)")
-    lines += _against_notes(result)
-    return "\n".join(lines)
-
-
-#: performance-notes.md §4, ms per step with the 2-thread ray cast, on a machine whose
-#: bare 1-thread Embree cast of its face at 250x250 took :data:`NOTES_EMBREE_MS`.
-NOTES_STEP_MS = {
-    128: {"shape": 6.4, "pose": 2.6, "albedo": 1.1, "light": 0.7},
-    250: {"shape": 10.2, "pose": 6.5, "albedo": 1.7, "light": 1.1},
-    512: {"shape": 23.6, "pose": 25.3, "albedo": 3.8, "light": 3.1},
-}
-NOTES_EMBREE_MS = 6.6
-
-
-def _against_notes(result: BenchResult) -> list[str]:
-    """Lines comparing the one-kind medians with the notes' figures, scaled to this machine.
-
-    The scale is the ratio of the bare Embree casts (this machine / the notes'):
-    a first-order correction for a slower or faster CPU, exact only for the
-    ray-cast part of a step.
-    """
-    rows = [r for r in result.rows if r.size in NOTES_STEP_MS]
-    if not rows or result.embree_bare_ms <= 0:
-        return []
-    f = result.embree_bare_ms / NOTES_EMBREE_MS
-    out = [f"against performance-notes.md §4 (lower bounds measured there), scaled by this "
-           f"machine's bare Embree cast: {result.embree_bare_ms:.1f} / {NOTES_EMBREE_MS} = "
-           f"{f:.2f}",
-           f"{'size':>7s} {'kind':>7s} {'notes ms':>8s} {'x scale':>8s} {'ours ms':>8s} "
-           f"{'ours/scaled':>11s}"]
-    for r in rows:
-        ref = NOTES_STEP_MS[r.size][r.kind]
-        out.append(f"{r.size:>3d}x{r.size:<3d} {r.kind:>7s} {ref:8.1f} {ref * f:8.2f} "
-                   f"{r.ours_ms:8.2f} {r.ours_ms / (ref * f):11.2f}")
-    return out

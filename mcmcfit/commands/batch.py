@@ -1,4 +1,8 @@
-"""``mcmcfit batch`` (fit a folder of images) and ``mcmcfit batch-report`` (summarise a batch)."""
+"""``mcmcfit batch`` (fit a folder of images) and ``mcmcfit batch-report`` (summarise a batch).
+
+This module imports :mod:`albedo_model.errors` and :mod:`mcmcfit.commands.fit`;
+:mod:`mcmcfit.batch` and :mod:`mcmcfit.jobs` modules are imported when a command runs.
+"""
 
 from __future__ import annotations
 
@@ -50,6 +54,7 @@ def _positive(text: str) -> int:
 
 
 def register(subparsers) -> None:
+    """Add the ``batch`` and ``batch-report`` commands."""
     p = subparsers.add_parser(
         "batch", help="fit every image of a folder (resumable, parallel, Dask)",
         description=_BATCH_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -94,6 +99,18 @@ def register(subparsers) -> None:
 
 
 def run_batch_command(args: argparse.Namespace) -> int:
+    """Run ``mcmcfit batch``: check the options, fit the images, print a summary.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed ``batch`` options.
+
+    Returns
+    -------
+    int
+        The exit code: 1 when an image failed in this run, else 0.
+    """
     from mcmcfit.batch.run import BatchOptions, run_batch
     from mcmcfit.batch.task import LFW_BOX
     from mcmcfit.batch.worker_env import usable_cores
@@ -142,6 +159,13 @@ def run_batch_command(args: argparse.Namespace) -> int:
 
 
 def run_report_command(args: argparse.Namespace) -> int:
+    """Run ``mcmcfit batch-report``: write the HTML page (and the CSV) of a batch folder.
+
+    Returns
+    -------
+    int
+        The exit code, 0.
+    """
     from mcmcfit.batch.report import write_batch_report
 
     out = Path(args.out)

@@ -1,6 +1,13 @@
-"""``mcmcfit bench render`` (ms per sampler step per proposal kind, against the naive path) and
+"""``mcmcfit bench``: benchmarks of the hot paths.
+
+``mcmcfit bench render`` (ms per sampler step per proposal kind, against the naive path) and
 ``mcmcfit bench fit`` (the default schedule on the demo case: time per stage and proposal kind,
-accuracy against time)."""
+accuracy against time).
+
+This module imports :mod:`albedo_model.errors`; :mod:`mcmcfit.bench`,
+:mod:`mcmcfit.fitting.config` and :mod:`mcmcfit.jobs.model_spec` are imported when a
+benchmark runs.
+"""
 
 from __future__ import annotations
 
@@ -70,7 +77,7 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def register(subparsers) -> None:
-    """Add ``bench`` with its ``render`` action."""
+    """Add ``bench`` with its ``render`` and ``fit`` actions."""
     parser = subparsers.add_parser(
         "bench", help="benchmarks of the hot paths",
         description="Benchmarks of the hot paths.",
@@ -99,7 +106,8 @@ def register(subparsers) -> None:
 
 def run_render(args: argparse.Namespace) -> int:
     """Run the render benchmark and print its table."""
-    from mcmcfit.bench.render_bench import format_table, run_render_bench
+    from mcmcfit.bench.render_bench import run_render_bench
+    from mcmcfit.bench.render_report import format_table
 
     if args.steps < 1 or args.warmup < 0 or (args.naive_steps is not None and args.naive_steps < 1):
         raise InputError("--steps and --naive-steps must be >= 1, --warmup >= 0")

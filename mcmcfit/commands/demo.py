@@ -1,4 +1,9 @@
-"""``mcmcfit demo``: fit a synthetic face with known truth and report the albedo error."""
+"""``mcmcfit demo``: fit a synthetic face with known truth and report the albedo error.
+
+This module imports :mod:`mcmcfit.commands.fit`; :mod:`albedo_model.io`,
+:mod:`mcmcfit.fitting.progress`, :mod:`mcmcfit.jobs` and :mod:`mcmcfit.outputs.truth`
+are imported when a demo runs.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +16,7 @@ __all__ = ["register", "run", "run_demo"]
 
 
 def register(subparsers) -> None:
+    """Add the ``demo`` command."""
     p = subparsers.add_parser(
         "demo", help="fit a synthetic face of the default model and compare with the truth",
         description="Render a random face of the built-in default model (known coefficients, "
@@ -83,6 +89,7 @@ def run_demo(out_dir, *, model="default", size: int = 250, case_seed: int = 0, s
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run ``mcmcfit demo`` (:func:`run_demo`) and print the result; return the exit code."""
     from mcmcfit.jobs.fit_job import load_model_cached
     from mcmcfit.fitting.progress import FitProgressBar
 
@@ -101,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def format_demo_result(out: Path, summary: dict) -> str:
-    """The lines ``mcmcfit demo`` prints: albedo error, coverage, pose error, time."""
+    """Format the lines ``mcmcfit demo`` prints: albedo error, coverage, pose error, time."""
     truth = summary["truth"]
     level = 100 * truth["interval"]
     lines = [f"wrote {out}/ (open {out / 'report.html'})"]

@@ -1,4 +1,9 @@
-"""``mcmcfit fit IMAGE -o OUT``: fit one photograph and write its result folder."""
+"""``mcmcfit fit IMAGE -o OUT``: fit one photograph and write its result folder.
+
+This module imports :mod:`albedo_model.errors`, :mod:`mcmcfit.fitting.config`,
+:mod:`mcmcfit.fitting.progress` and :mod:`mcmcfit.jobs.fit_job`, all inside
+functions (building the command-line parser must not load JAX).
+"""
 
 from __future__ import annotations
 
@@ -30,10 +35,14 @@ def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "
                    "--steps/--landmark-steps/--chains override it")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--check-cache", action="store_true",
+                   help="debug: after every step compare every cached product (render, log "
+                        "densities, proposal data) with a fresh computation; stops with an "
+                        "error naming the first difference (several times slower)")
 
 
 def config_from_args(args: argparse.Namespace, **defaults):
-    """The FitConfig of ``--config`` (or the defaults) with the schedule options applied."""
+    """Build the FitConfig of ``--config`` (or the defaults) with the schedule options applied."""
     from albedo_model.errors import InputError
     from mcmcfit.fitting.config import FitConfig
 
@@ -49,6 +58,8 @@ def config_from_args(args: argparse.Namespace, **defaults):
         cfg = FitConfig(**defaults)
     changes = {k: v for k, v in (("steps", args.steps), ("landmark_steps", args.landmark_steps),
                                  ("chains", args.chains)) if v is not None}
+    if getattr(args, "check_cache", False):
+        changes["check_cache"] = True
     return cfg.replace(**changes) if changes else cfg
 
 
@@ -81,6 +92,7 @@ def cli_warnings(command: str):
 
 
 def register(subparsers) -> None:
+    """Add the ``fit`` command."""
     p = subparsers.add_parser(
         "fit", help="fit a face image: posterior albedo, uncertainty, report",
         description="Fit the morphable albedo model to one photograph (landmark stage, then "
@@ -100,6 +112,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run ``mcmcfit fit`` and print where the result went; return the exit code."""
     from mcmcfit.jobs.fit_job import run_fit_job
     from mcmcfit.fitting.progress import FitProgressBar
 

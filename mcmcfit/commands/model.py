@@ -1,9 +1,15 @@
 """``mcmcfit model ACTION``: inspect and assemble model files.
 
 Actions: ``info`` (sizes, parts and ranks, landmarks, colour space, SHA-256;
-``--json`` for one JSON object) and ``combine`` (BFM 2017 shape model +
-AlbedoMM albedo part -> joint AlbedoMM file). Further actions register by
+``--json`` for one JSON object), ``combine`` (BFM 2017 shape model +
+AlbedoMM albedo part -> joint AlbedoMM file), ``sample``
+(:mod:`mcmcfit.commands.model_sample`) and ``specgen``
+(:mod:`mcmcfit.commands.model_specgen`). Further actions register by
 appending a ``register_<action>(actions)`` function to :data:`ACTIONS`.
+
+This module imports :mod:`albedo_model.io`, :mod:`mcmcfit.commands.subcommands` and
+:mod:`mcmcfit.jobs.model_spec`; :mod:`mcmcfit.commands.model_sample` and
+:mod:`mcmcfit.commands.model_specgen` are imported when their actions register.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from albedo_model.io.model_files import (
     model_file_kind,
 )
 from albedo_model.io.momo_h5 import read_albedo_part
+from mcmcfit.commands.subcommands import add_action
 from mcmcfit.jobs.model_spec import resolve_model
 
 __all__ = ["register", "ACTIONS", "model_info"]
@@ -123,19 +130,19 @@ def _run_combine(args: argparse.Namespace) -> int:
 
 def register_info(actions: argparse._SubParsersAction) -> None:
     """Add ``model info``."""
-    p = actions.add_parser(
-        "info", help="describe a model file",
+    p = add_action(
+        actions, "info", _run_info, help="describe a model file",
         description="Sizes, parts and ranks, landmarks, colour space and SHA-256 of a model file.",
     )
     p.add_argument("model", metavar="MODEL", help="model file, or 'default' for the built-in model")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_run_info)
 
 
 def register_combine(actions: argparse._SubParsersAction) -> None:
     """Add ``model combine``."""
-    p = actions.add_parser(
-        "combine", help="build the joint AlbedoMM model from BFM 2017 and an albedo part",
+    p = add_action(
+        actions, "combine", _run_combine,
+        help="build the joint AlbedoMM model from BFM 2017 and an albedo part",
         description="Shape, expression and landmarks from --shape, diffuse and specular albedo "
                     "from --albedo; both must share one mesh topology.",
     )
@@ -143,33 +150,30 @@ def register_combine(actions: argparse._SubParsersAction) -> None:
     p.add_argument("--albedo", required=True, type=Path,
                    help="e.g. albedoModel2020_face12_albedoPart.h5")
     p.add_argument("-o", "--output", required=True, type=Path, help="joint model to write (.h5)")
-    p.set_defaults(func=_run_combine)
 
 
 def register_sample(actions: argparse._SubParsersAction) -> None:
     """Add ``model sample``."""
     from mcmcfit.commands import model_sample
 
-    p = actions.add_parser(
-        "sample", help="render random albedo samples of a model as a grid",
+    add_action(
+        actions, "sample", model_sample.run, arguments=model_sample.add_arguments,
+        help="render random albedo samples of a model as a grid",
         description="Random faces (albedo ~ N(0, I), mean shape) at random yaw in +-30 degrees, "
                     "white frontal light, Blinn-Phong (shininess 20), gamma 2.2.",
     )
-    model_sample.add_arguments(p)
-    p.set_defaults(func=model_sample.run)
 
 
 def register_specgen(actions: argparse._SubParsersAction) -> None:
     """Add ``model specgen``."""
     from mcmcfit.commands import model_specgen
 
-    p = actions.add_parser(
-        "specgen", help="leave-one-out generalisation of the three specular model variants",
+    add_action(
+        actions, "specgen", model_specgen.run, arguments=model_specgen.add_arguments,
+        help="leave-one-out generalisation of the three specular model variants",
         description="Builds the synthetic population and plots the leave-one-out specular "
                     "error of the independent, concatenated and transferred models.",
     )
-    model_specgen.add_arguments(p)
-    p.set_defaults(func=model_specgen.run)
 
 
 #: One registrar per ``model`` action, in help order.

@@ -5,6 +5,10 @@ face is rendered at a random yaw in [-30, 30] degrees with a white frontal
 light (Lambert diffuse + Blinn-Phong with shininess 20, scaled by the sampled
 specular albedo when the model has one), then gamma-encoded with the pure power
 1/2.2, and the renders are tiled into one image.
+
+This module imports :mod:`albedo_model.errors`; :mod:`albedo_model` (``camera``,
+``io.image_io``, ``params``, ``render.renderer``) and :mod:`mcmcfit.jobs.model_spec`
+are imported when it runs.
 """
 
 from __future__ import annotations

@@ -2,8 +2,13 @@
 
 Builds the synthetic population (template head + subjects), computes the
 leave-one-out specular error of the independent, concatenated and transferred
-models (the paper's figure "specgen") and plots it. The lead wires this module
-into the ``model`` command with :func:`add_arguments` and :func:`run`.
+models (the paper's figure "specgen") and plots it. The ``model`` command
+(:func:`mcmcfit.commands.model.register_specgen`) wires this module in with
+:func:`add_arguments` and :func:`run`.
+
+This module imports :mod:`albedo_model.errors` and :mod:`albedo_model.io.atomic`;
+:mod:`pipeline.modelling.generalisation`, :mod:`pipeline.synthetic.subjects` and
+:mod:`pipeline.synthetic.head.template_head` are imported when it runs.
 """
 
 from __future__ import annotations

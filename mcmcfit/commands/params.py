@@ -4,7 +4,7 @@
 writes V4 (plus this project's ``specularExponent``). Bad input is a
 :class:`albedo_model.errors.FormatError`; nothing is written then.
 
-Imports only :mod:`albedo_model`.
+This module imports only :mod:`albedo_model.io.rps`.
 """
 
 from __future__ import annotations

@@ -3,8 +3,13 @@
 Actions: ``stitch`` (sample calibrated photographs onto a registered mesh and
 blend them into one seamless per-vertex texture by screened-Poisson
 stitching), ``simulate`` (write synthetic lightstage captures) and ``build``
-(capture folder -> albedo model). Further actions register by appending a ``register_<action>(actions)``
-function to :data:`ACTIONS`.
+(capture folder -> albedo model). Further actions register by appending a
+``register_<action>(actions)`` function to :data:`ACTIONS`.
+
+This module imports :mod:`mcmcfit.commands.subcommands` when it loads; :mod:`albedo_model`
+(``errors``, ``io.image_io``), :mod:`pipeline.texturing` (``stitch_capture``,
+``texture_preview``), :mod:`mcmcfit.commands.pipeline_simulate` and
+:mod:`mcmcfit.commands.pipeline_build` are imported when an action registers or runs.
 """
 
 from __future__ import annotations
@@ -14,6 +19,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+from mcmcfit.commands.subcommands import add_action
 
 __all__ = ["ACTIONS", "register"]
 
@@ -56,8 +63,9 @@ def _run_stitch(args: argparse.Namespace) -> int:
 
 def register_stitch(actions: argparse._SubParsersAction) -> None:
     """Add ``pipeline stitch``."""
-    p = actions.add_parser(
-        "stitch", help="blend calibrated photographs into one per-vertex texture",
+    p = add_action(
+        actions, "stitch", _run_stitch,
+        help="blend calibrated photographs into one per-vertex texture",
         description="Samples each photograph onto the registered mesh (visibility, cosine "
                     "weights, silhouette margin), picks the best view per triangle and solves "
                     "a screened Poisson equation for seamless per-vertex colours "
@@ -86,35 +94,32 @@ def register_stitch(actions: argparse._SubParsersAction) -> None:
                    help="silhouette raster reduction factor (default 4)")
     p.add_argument("--preview-scale", type=int, default=4,
                    help="size reduction of the preview picture (default 4)")
-    p.set_defaults(func=_run_stitch)
 
 
 def register_simulate(actions: argparse._SubParsersAction) -> None:
     """Add ``pipeline simulate``."""
     from mcmcfit.commands import pipeline_simulate
 
-    p = actions.add_parser(
-        "simulate", help="write simulated lightstage captures of synthetic subjects",
+    add_action(
+        actions, "simulate", pipeline_simulate.run, arguments=pipeline_simulate.add_arguments,
+        help="write simulated lightstage captures of synthetic subjects",
         description="Synthetic subjects in a polarised 41-LED lightstage: three poses, "
                     "parallel/perpendicular photometric pairs, 7 unpolarised views, spectral "
                     "camera, ISO, sensor noise, misalignment; every effect can be switched off.",
     )
-    pipeline_simulate.add_arguments(p)
-    p.set_defaults(func=pipeline_simulate.run)
 
 
 def register_build(actions: argparse._SubParsersAction) -> None:
     """Add ``pipeline build``."""
     from mcmcfit.commands import pipeline_build
 
-    p = actions.add_parser(
-        "build", help="build an albedo model (AlbedoMM HDF5) from a capture folder",
+    add_action(
+        actions, "build", pipeline_build.run, arguments=pipeline_build.add_arguments,
+        help="build an albedo model (AlbedoMM HDF5) from a capture folder",
         description="Polarisation separation, intrinsic albedo, calibrated colour, per-view "
                     "sampling, stitching, inpainting, external scans, symmetry-augmented PCA "
                     "(three variants) and their leave-one-out comparison. Resumable.",
     )
-    pipeline_build.add_arguments(p)
-    p.set_defaults(func=pipeline_build.run)
 
 
 #: One registrar per ``pipeline`` action, in help order.

@@ -2,6 +2,10 @@
 
 Processes every subject (cached in a work folder, so a rerun resumes),
 completes, models and evaluates the population (:mod:`pipeline.lightstage.build`).
+
+This module imports :mod:`albedo_model.errors`; :mod:`pipeline.lightstage` (``build``,
+``capture_folder``), :mod:`pipeline.texturing.capture_io` and
+:mod:`pipeline.synthetic.albedo_preview` are imported when it runs.
 """
 
 from __future__ import annotations
@@ -42,9 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _preview(path: Path, report, captures: Path) -> None:
     import numpy as np
 
-    from pipeline.synthetic.albedo_preview import write_albedo_preview
     from pipeline.lightstage.capture_folder import read_template
-    from pipeline.lightstage.io import load_mesh
+    from pipeline.synthetic.albedo_preview import write_albedo_preview
+    from pipeline.texturing.capture_io import load_mesh
 
     template = read_template(captures)
     name = report.subjects[0]

@@ -3,6 +3,9 @@
 Every effect of the capture simulator is on by default and can be switched
 off (``--no-noise``, ``--no-specular`` ...); see :mod:`pipeline.synthetic.capture`
 and the folder layout in :mod:`pipeline.lightstage.capture_folder`.
+
+This module imports :mod:`albedo_model.errors`; :mod:`pipeline.synthetic.capture` and
+:mod:`pipeline.synthetic.write_captures` are imported when it runs.
 """
 
 from __future__ import annotations

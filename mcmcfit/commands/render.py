@@ -1,4 +1,8 @@
-"""``mcmcfit render MODEL PARAMS.rps -o out.png``: render the instance an .rps describes."""
+"""``mcmcfit render MODEL PARAMS.rps -o out.png``: render the instance an .rps describes.
+
+This module imports :mod:`albedo_model.errors`; :mod:`albedo_model` (``io``, ``params``,
+``render.renderer``) and :mod:`mcmcfit.jobs.model_spec` are imported when it runs.
+"""
 
 from __future__ import annotations
 
@@ -18,6 +22,7 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def register(subparsers) -> None:
+    """Add the ``render`` command."""
     p = subparsers.add_parser(
         "render", help="render the model instance described by a .rps file",
         description="Render the model instance of a .rps file (shape/colour/expression "
@@ -37,6 +42,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Render the instance of ``args.params`` and write the PNG; return the exit code."""
     from albedo_model.io.image_io import write_png
     from albedo_model.io.rps import read_rps
     from albedo_model.params import ImageSize

@@ -105,6 +105,10 @@ class FitConfig:
         Face-box likelihood scales (log scale; fraction of the box diagonal).
     threads : int or None
         Ray-casting threads (1 or 2; None: min(2, CPUs)).
+    check_cache : bool
+        Debug mode (``--check-cache``): after every step compare every cached
+        product (render, log densities, proposal data) with a fresh computation
+        (:mod:`mcmcfit.fitting.cache_check`); several times slower.
     prior : PriorConfig
     """
 
@@ -139,6 +143,7 @@ class FitConfig:
     face_box_scale_sigma: float = 0.1
     face_box_centre_sigma: float = 0.1
     threads: int | None = None
+    check_cache: bool = False
     prior: PriorConfig = field(default_factory=PriorConfig)
 
     def __post_init__(self) -> None:

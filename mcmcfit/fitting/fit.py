@@ -26,7 +26,10 @@ from albedo_model.model import MorphableModel
 from albedo_model.params import ImageSize, RenderParameter, SHLight
 from albedo_model.render.renderer import Renderer
 from mcmcfit.proposal_data.albedo import RenderAlbedoData
-from mcmcfit.sampling.chain import BestSample, ChainRecord, ChainRecorder, ChainResult
+from mcmcfit.fitting.cache_check import CacheCheck
+from mcmcfit.sampling.chain import (
+    BestSample, ChainRecord, ChainRecorder, ChainResult, stacked_samples,
+)
 from mcmcfit.sampling.diagnostics import chain_diagnostics
 from mcmcfit.targets.face import FaceTarget
 from mcmcfit.fitting.config import FitConfig
@@ -39,6 +42,7 @@ from mcmcfit.fitting.initialisation import initial_params, pose_from_face_box, p
 from mcmcfit.targets.priors import LogPrior
 from mcmcfit.sampling.kernel import init, run
 from mcmcfit.fitting.landmark_stage_emcee import run_emcee_stage
+from proposals.base import ProposalState
 from proposals.light_solver import solve_sh_light
 from proposals.schedule import CENTERING_LANDMARKS, default_image_proposal, landmark_stage_proposal
 
@@ -55,14 +59,38 @@ _BLACK = 0.5 / 255.0
 
 def run_stage(rng: np.random.Generator, start: RenderParameter, target: FaceTarget, proposal,
               n_steps: int, *, image: bool, thin: int, layout: ParamLayout,
-              progress: Callable[[int, int], None] | None = None) -> ChainRecord:
-    """Run one MH stage from ``start`` and return its record (timed)."""
+              progress: Callable[[int, int], None] | None = None,
+              check: CacheCheck | None = None) -> ChainRecord:
+    """Run one MH stage from ``start`` and return its record (timed).
+
+    Parameters
+    ----------
+    rng : numpy Generator
+    start : RenderParameter
+    target : FaceTarget
+    proposal : Proposal
+    n_steps : int
+    image : bool
+        The image stage (False: the landmark stage, no render).
+    thin : int
+        Keep every ``thin``-th sample.
+    layout : ParamLayout
+        Columns of the kept samples.
+    progress : callable ``(done, total)``, optional
+    check : CacheCheck, optional
+        ``--check-cache``: compare every cached product with a fresh computation
+        after each step (raises :class:`~mcmcfit.fitting.cache_check.CacheMismatchError`).
+    """
     t0 = time.perf_counter()
     state = init(start, target, image=image)
     recorder = ChainRecorder(layout, n_steps, thin, state, stage="image" if image else "landmarks")
+    if check is not None:
+        check(-1, state)
 
     def callback(i, s, info):
         recorder(i, s, info)
+        if check is not None:
+            check(i, s, info)
         if progress is not None and ((i + 1) % _PROGRESS_EVERY == 0 or i + 1 == n_steps):
             progress(i + 1, n_steps)
 
@@ -73,12 +101,12 @@ def run_stage(rng: np.random.Generator, start: RenderParameter, target: FaceTarg
 def _with_solved_light(target: FaceTarget, params: RenderParameter,
                        data: RenderLightData) -> RenderParameter:
     """``params`` with the least-squares SH light if it renders the target better."""
-    target.init_render(params)
-    normals, albedo, colours = data(params)
+    rendered = target.init_render(params)
+    normals, albedo, colours = data(ProposalState(params, rendered))
     if normals.shape[0] < 20:
         return params
     solved = params._replace(environment_map=SHLight(solve_sh_light(normals, albedo, colours)))
-    before = target.log_lik_image(target.current)
+    before = target.log_lik_image(rendered)
     after = target.log_lik_image(target.init_render(solved))
     return solved if after > before else params
 
@@ -180,9 +208,9 @@ def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConf
     root = np.random.SeedSequence(seed)
     for ci, ss in enumerate(root.spawn(cfg.chains)):
         rng = np.random.default_rng(ss)
-        light_data = RenderLightData(face, renderer, image_target.linear,
+        light_data = RenderLightData(renderer, image_target.linear,
                                      n_points=cfg.solver_points, seed=int(ss.generate_state(1)[0]))
-        albedo_data = RenderAlbedoData(face, renderer, image_target.linear,
+        albedo_data = RenderAlbedoData(renderer, image_target.linear,
                                        n_points=cfg.albedo_points,
                                        seed=int(ss.generate_state(2)[1]))
         image_proposal = default_image_proposal(
@@ -207,17 +235,21 @@ def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConf
                                        n_walkers=walkers, thin=max(1, cfg.thin // walkers),
                                        progress=report("landmarks"))
             else:
+                check1 = CacheCheck(lm_only, stage="landmarks") if cfg.check_cache else None
                 rec1 = run_stage(rng, params0, lm_only, stage1_proposal, cfg.landmark_steps,
                                  image=False, thin=cfg.thin, layout=layout,
-                                 progress=report("landmarks"))
+                                 progress=report("landmarks"), check=check1)
             start = rec1.best_posterior.params
         lm_init.append(start)
         rec2 = None
         if cfg.steps > 0:
             if cfg.init_light == "solve":
                 start = _with_solved_light(face, start, light_data)
+            check2 = CacheCheck(face, (("albedo conditional", albedo_data),
+                                       ("SH solver", light_data))) if cfg.check_cache else None
             rec2 = run_stage(rng, start, face, image_proposal, cfg.steps, image=True,
-                             thin=cfg.thin, layout=layout, progress=report("image"))
+                             thin=cfg.thin, layout=layout, progress=report("image"),
+                             check=check2)
         chains.append(ChainResult(ci, int(root.entropy), tuple(int(k) for k in ss.spawn_key),
                                   rec1, rec2))
 
@@ -241,8 +273,7 @@ def _assemble(cfg: FitConfig, seed: int, layout: ParamLayout, template: RenderPa
                  if last else best)
     mean_params = None
     if rec2 and all(r.samples.shape[0] for r in rec2):
-        pooled = np.concatenate([r.samples[int(cfg.burn_fraction * r.samples.shape[0]):]
-                                 for r in rec2])
+        pooled = stacked_samples(rec2, layout.size, discard=cfg.burn_fraction, flat=True)
         if pooled.shape[0]:
             mean_params = layout.from_vector(pooled.mean(axis=0), template)
     s1 = sum(r.seconds for r in rec1)

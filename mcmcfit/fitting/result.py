@@ -14,7 +14,9 @@ import numpy as np
 
 from albedo_model.errors import InputError
 from albedo_model.params import RenderParameter
-from mcmcfit.sampling.chain import BestSample, ChainRecord, ChainResult, ProposalStats, write_chains_h5
+from mcmcfit.sampling.chain import (
+    BestSample, ChainRecord, ChainResult, ProposalStats, stacked_samples, write_chains_h5,
+)
 from mcmcfit.sampling.diagnostics import SeriesDiagnostics
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.sampling.param_vector import ParamLayout
@@ -29,7 +31,7 @@ def sum_acceptance(records: list[ChainRecord | None]) -> dict[str, ProposalStats
         if r is None:
             continue
         for name, st in r.acceptance().items():
-            out[name] = out.get(name, np.zeros(5, np.int64)) + np.array(st)
+            out[name] = out.get(name, np.zeros(len(ProposalStats._fields), np.int64)) + np.array(st)
     return {k: ProposalStats(*(int(x) for x in v)) for k, v in sorted(out.items())}
 
 
@@ -124,13 +126,7 @@ class FitResult:
         -------
         (chains, n, d) float64, or (chains n, d) when ``flat``.
         """
-        recs = self.records(stage)
-        if not recs:
-            return np.zeros((0, self.layout.size)) if flat else np.zeros((0, 0, self.layout.size))
-        n = min(r.samples.shape[0] for r in recs)
-        start = int(discard * n)
-        arr = np.stack([r.samples[start:n] for r in recs])
-        return arr.reshape(-1, self.layout.size) if flat else arr
+        return stacked_samples(self.records(stage), self.layout.size, discard=discard, flat=flat)
 
     def column(self, name: str, stage: int = 2, *, discard: float = 0.0) -> np.ndarray:
         """(chains, n) samples of one parameter column."""

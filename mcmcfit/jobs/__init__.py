@@ -9,5 +9,7 @@ fit_job
 synthetic_case
     A face of a model with known truth, rendered over a textured background (the demo).
 
-Imports :mod:`mcmcfit.fitting` and :mod:`mcmcfit.outputs` (and what they import).
+This file imports nothing; its modules import :mod:`albedo_model`, :mod:`mcmcfit.fitting`,
+:mod:`mcmcfit.outputs` and :mod:`pipeline.synthetic` (the ``default`` model, LFW landmark
+names).
 """

@@ -8,8 +8,8 @@ before anything is written. Its arguments are plain picklable values, so a
 process pool can run it; models are loaded once per process
 (:func:`load_model_cached`).
 
-This module imports :mod:`albedo_model`, :mod:`pipeline` (through
-:mod:`mcmcfit.jobs.model_spec`) and :mod:`mcmcfit`.
+This module imports :mod:`albedo_model`, :mod:`mcmcfit.fitting`, :mod:`mcmcfit.outputs`
+and :mod:`mcmcfit.jobs.model_spec` (and through it :mod:`pipeline.synthetic.default_model`).
 """
 
 from __future__ import annotations
@@ -125,7 +125,10 @@ def read_landmarks(path: str | os.PathLike) -> list:
 
 
 def parse_face_box(box) -> tuple[float, float, float, float]:
-    """``"x,y,w,h"`` or a 4-sequence (x, y, w, h) -> ``(x0, y0, x1, y1)`` as :func:`fit` takes it."""
+    """Convert ``"x,y,w,h"`` or a 4-sequence (x, y, w, h) to ``(x0, y0, x1, y1)``.
+
+    The result is the face box as :func:`mcmcfit.fitting.fit.fit` takes it.
+    """
     if isinstance(box, str):
         try:
             vals = [float(v) for v in box.replace(" ", "").split(",")]
@@ -233,7 +236,10 @@ def fit_into_folder(image: np.ndarray, landmarks, loaded: LoadedModel, out_dir: 
 
 def check_landmark_names(landmarks, model: MorphableModel, *, source="landmarks",
                          minimum: int = 3) -> None:
-    """Raise InputError when fewer than ``minimum`` visible landmarks have a name the model knows."""
+    """Raise InputError when fewer than ``minimum`` visible landmarks have known names.
+
+    A name is known when the model has a landmark of that name.
+    """
     if isinstance(landmarks, dict):
         names = list(landmarks)
     else:

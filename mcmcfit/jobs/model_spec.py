@@ -1,4 +1,8 @@
-"""Model specs on the command line: a file path, or ``default`` (built on first use)."""
+"""Model specs on the command line: a file path, or ``default`` (built on first use).
+
+This module imports :mod:`albedo_model.io.model_files` and :mod:`albedo_model.model`;
+:mod:`pipeline.synthetic.default_model` is imported when ``default`` is resolved.
+"""
 
 from __future__ import annotations
 
@@ -11,7 +15,7 @@ __all__ = ["resolve_model", "load_model_spec"]
 
 
 def resolve_model(spec: str, *, progress: bool = True) -> Path:
-    """The model file for ``spec``; ``"default"`` builds the built-in model if needed."""
+    """Return the model file for ``spec``; ``"default"`` builds the built-in model if needed."""
     if str(spec) == DEFAULT_MODEL:
         from pipeline.synthetic.default_model import ensure_default_model
 

@@ -12,6 +12,13 @@ and the HTML report. The pieces live in small modules: posterior albedo
 (:mod:`~mcmcfit.outputs.truth`).
 """
 
-from mcmcfit.outputs.folder import OUTPUT_FILES, write_fit_outputs
-
 __all__ = ["OUTPUT_FILES", "write_fit_outputs"]
+
+
+def __getattr__(name: str):
+    # lazy: importing a small module of this package (e.g. html_style) must not load JAX
+    if name in __all__:
+        from mcmcfit.outputs import folder
+
+        return getattr(folder, name)
+    raise AttributeError(f"module 'mcmcfit.outputs' has no attribute {name!r}")

@@ -6,7 +6,7 @@ table per proposal, the convergence diagnostics, the timings and provenance,
 and (for synthetic cases) the error against the truth. Pictures are referenced
 by relative path, so the folder can be moved as a whole.
 
-This module imports only the standard library.
+This module imports only :mod:`mcmcfit.outputs.html_style`.
 """
 
 from __future__ import annotations
@@ -16,14 +16,12 @@ import math
 import os
 from pathlib import Path
 
+from mcmcfit.outputs.html_style import base_css
+
 __all__ = ["render_report", "write_report"]
 
-_CSS = """
-body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; max-width: 1100px; }
-h1 { font-size: 1.4em; } h2 { font-size: 1.15em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
-table { border-collapse: collapse; font-size: 0.85em; margin: 0.5em 0; }
-td, th { border: 1px solid #ccc; padding: 2px 8px; text-align: right; }
-th { background: #f2f2f2; } td.l, th.l { text-align: left; }
+_CSS = "\n" + base_css(max_width="1100px", h2_margin_top="1.6em", table_font_size="0.85em",
+                       cell_padding="2px 8px") + """\
 figure { display: inline-block; margin: 0.3em; vertical-align: top; text-align: center; }
 figure img { max-width: 100%; image-rendering: pixelated; border: 1px solid #ddd; }
 figcaption { font-size: 0.8em; color: #555; }
@@ -59,22 +57,25 @@ def _figure(src: str, caption: str, cls: str = "") -> str:
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
 
+_REJECTIONS = ("rejected_landmarks", "rejected_prior", "rejected_image", "rejected_joint",
+               "identity")
+
+
 def _acceptance(stats: dict) -> str:
     rows = [[name, s.get("proposed"), s.get("accepted"), s.get("rate"),
-             s.get("rejected_landmarks"), s.get("rejected_prior"), s.get("rejected_image")]
-            for name, s in stats.items()]
+             *(s.get(k) for k in _REJECTIONS)] for name, s in stats.items()]
     total = sum(s.get("proposed", 0) for s in stats.values())
     acc = sum(s.get("accepted", 0) for s in stats.values())
-    rows.append(["all", total, acc, acc / total if total else None,
-                 sum(s.get("rejected_landmarks", 0) for s in stats.values()),
-                 sum(s.get("rejected_prior", 0) for s in stats.values()),
-                 sum(s.get("rejected_image", 0) for s in stats.values())])
+    moved = total - sum(s.get("identity", 0) for s in stats.values())
+    rows.append(["all", total, acc, acc / moved if moved else None,
+                 *(sum(s.get(k, 0) for s in stats.values()) for k in _REJECTIONS)])
     return _table(["proposal", "proposed", "accepted", "rate", "rejected by landmarks",
-                   "by prior", "by image"], rows)
+                   "by prior", "by image", "by the joint test", "identity (nothing to move)"],
+                  rows)
 
 
 def render_report(summary: dict, files: set[str] | None = None) -> str:
-    """The report page for ``summary`` (a ``summary.json`` dict) as HTML text.
+    """Build the report page for ``summary`` (a ``summary.json`` dict) as HTML text.
 
     Parameters
     ----------

@@ -19,11 +19,17 @@ __all__ = ["SUMMARY_FORMAT", "landmark_errors", "build_summary", "json_safe", "s
 SUMMARY_FORMAT = "mcmcfit-fit-summary/1"
 
 
-def software_versions() -> dict[str, str]:
-    """Versions of mcmcfit and the libraries that shape its numbers."""
-    from mcmcfit import __version__
+def _mcmcfit_version() -> str:
+    """The installed mcmcfit version (as ``mcmcfit.__version__``, read without importing the facade)."""
+    try:
+        return version("mcmcfit")
+    except PackageNotFoundError:  # running from a source tree without install
+        return "0.0.0+unknown"
 
-    out = {"mcmcfit": __version__, "python": platform.python_version()}
+
+def software_versions() -> dict[str, str]:
+    """Return the versions of mcmcfit and the libraries that shape its numbers."""
+    out = {"mcmcfit": _mcmcfit_version(), "python": platform.python_version()}
     for pkg in ("numpy", "jax", "jaxlib", "embreex", "emcee"):
         try:
             out[pkg] = version(pkg)
@@ -81,8 +87,7 @@ def build_summary(result: FitResult, *, model_sha256: str, model_uri: str, input
     densities, ``albedo`` (colour space, interval, sample count, visibility),
     ``truth`` (synthetic cases only), ``config`` and ``files``.
     """
-    from mcmcfit import __version__
-
+    __version__ = _mcmcfit_version()
     base = result.summary()
     cfg = result.config
     diag = _stage_diag(result)

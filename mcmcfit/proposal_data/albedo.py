@@ -1,20 +1,23 @@
-"""Data of the albedo conditional proposal, read from the accepted render state.
+"""Data of the albedo conditional proposal, computed from the accepted state it is handed.
 
-:class:`RenderAlbedoData` is the ``data(params)`` callable of
+:class:`RenderAlbedoData` is the ``data(state)`` callable of
 :class:`proposals.albedo_solver.AlbedoConditional`: the render linearised in
 the albedo coefficients at the face pixels whose target is not saturated
 (:class:`proposals.albedo_solver.AlbedoSystem`). Per pixel, the cached light
-transport (:class:`albedo_model.shading.image_formation.PixelLight`: diffuse irradiance,
-specular lobe light) multiplies the interpolated diffuse and specular albedo
-bases (at most ``n_points`` pixels, a fixed random subset); the colour
-transform is returned separately, with the pixel's render
-at the model's mean albedo, so that the proposal can drop pixels near the
-clamp at 1, also for a scaled light. Pixels
-beyond ``n_points`` are dropped in the order of a fixed random permutation
-(drawn once from ``seed``). Everything depends on the geometry, pose,
-camera, light and colour transform only, never on the albedo coefficients.
+transport (:class:`albedo_model.shading.image_formation.PixelLight`: diffuse
+irradiance, specular lobe light) multiplies the interpolated diffuse and
+specular albedo bases (at most ``n_points`` pixels, a fixed random subset); the
+colour transform is returned separately, with the pixel's render at the
+model's mean albedo, so that the proposal can drop pixels near the clamp at 1,
+also for a scaled light. Pixels beyond ``n_points`` are dropped in the order of
+a fixed random permutation (drawn once from ``seed``). Everything depends on
+the geometry, pose, camera, light and colour transform only, never on the
+albedo coefficients: the system is kept while the version stamps of the
+blocks of ``STAGE_DEPS["albedo_system"]`` are (the face pixels' bases while
+those of ``"albedo_bases"`` are; :mod:`albedo_model.render.cache_table`).
 
-This module imports :mod:`albedo_model` and numpy.
+This module imports :mod:`albedo_model` (render, shading effects, params),
+:mod:`proposals.albedo_solver` and :mod:`mcmcfit.proposal_data.face_pixels`.
 """
 
 from __future__ import annotations
@@ -23,13 +26,18 @@ import numpy as np
 
 from albedo_model.errors import InputError
 from albedo_model.params import RenderParameter
-from albedo_model.render.renderer import Renderer, RenderState
-from proposals.albedo_solver import albedo_system
+from albedo_model.render.cache_table import stage_key
+from albedo_model.render.renderer import Renderer
+from albedo_model.render.state import RenderState
+from albedo_model.shading.effects import Effects, offset_count
+from mcmcfit.proposal_data.face_pixels import (
+    barycentric, corner_weights, render_state_of, unsaturated,
+)
+from proposals.albedo_solver import AlbedoSystem, albedo_system
+from proposals.base import ProposalState
 
-__all__ = ["RenderAlbedoData", "interp"]
+__all__ = ["RenderAlbedoData"]
 
-_LUMA = np.array([0.3, 0.59, 0.11])
-_SATURATED = 0.97
 #: The clamp test uses the render at the model's mean albedo plus this many
 #: marginal sd (0: the mean; larger values drop more pixels when the light is
 #: bright, which made the proposal a poor match in tests).
@@ -37,12 +45,12 @@ _HI_SD = 0.0
 
 
 class RenderAlbedoData:
-    """``data(params) -> AlbedoSystem`` (all usable face pixels) or None.
+    """``data(state) -> AlbedoSystem`` (all usable face pixels of the accepted render) or None.
 
     Parameters
     ----------
-    source : object with ``current: RenderState`` (a :class:`~mcmcfit.targets.face.FaceTarget`)
     renderer : Renderer
+        The renderer of the states it is handed (its model and effects).
     target_linear : (H, W, 3) float array
         The linearised target image.
     n_points : int
@@ -52,11 +60,11 @@ class RenderAlbedoData:
         Seeds the fixed pixel permutation.
     """
 
-    def __init__(self, source, renderer: Renderer, target_linear: np.ndarray, *,
+    def __init__(self, renderer: Renderer, target_linear: np.ndarray, *,
                  n_points: int = 4000, seed: int = 0):
-        self.source, self.renderer = source, renderer
+        self.renderer = renderer
         self._target = np.asarray(target_linear, np.float64).reshape(-1, 3)
-        self._ok = np.all(self._target < _SATURATED, axis=1)
+        self._ok = unsaturated(self._target)
         perm = np.random.default_rng(seed).permutation(self._target.shape[0])
         self._rank = np.empty(perm.shape[0], np.int64)  # position of each pixel in perm
         self._rank[perm] = np.arange(perm.shape[0])
@@ -76,74 +84,59 @@ class RenderAlbedoData:
         self._specular_hi = None if spec is None else (
             spec.mean.astype(np.float64) + _HI_SD * spec.marginal_std()).reshape(n, 3).astype(
             np.float32)
-        self._key: tuple | None = None
-        self._value = None
-        self._bases_key: tuple | None = None
-        self._bases_value = None
+        self._system: tuple = (None, None)  # (key, AlbedoSystem or None)
+        self._bases: tuple = (None, None)  # (key, face pixels and their bases)
 
-    def _state(self, params: RenderParameter) -> RenderState:
-        rs = self.source.current
-        if rs is None:
-            raise InputError("albedo data: the target holds no render state yet")
-        p = rs.params
-        if p is not params and not (p.pose == params.pose and p.camera == params.camera
-                                    and p.color_transform == params.color_transform):
-            raise InputError("albedo data requested for a state the renderer does not hold")
-        return rs
-
-    def __call__(self, params: RenderParameter):
-        rs = self._state(params)
-        p = rs.params
-        k = len(params.momo.albedo)
-        key = (rs.hits, rs.pixel_light, p.color_transform, k)
-        if self._key is not None and all(a is b for a, b in zip(self._key[:2], key[:2])) \
-                and self._key[2:] == key[2:]:
-            return self._value
-        self._key, self._value = key, self._compute(rs, p, k)
-        return self._value
+    def __call__(self, state: ProposalState) -> AlbedoSystem | None:
+        """Return the albedo system of the accepted ``state``'s render (None: nothing to draw)."""
+        rs = render_state_of(state, "albedo conditional data")
+        k = len(state.params.momo.albedo)
+        key = (stage_key(rs.versions, "albedo_system"), k)
+        if self._system[0] != key:
+            self._system = (key, self._compute(rs, state.params, k, key))
+        return self._system[1]
 
     @staticmethod
-    def _colour(p: RenderParameter, effects) -> tuple[np.ndarray, np.ndarray]:
+    def _colour(p: RenderParameter, effects: Effects) -> tuple[np.ndarray, np.ndarray]:
         """The colour transform as ``c' = M c + off`` (float32; identity when off)."""
         if not effects.color_transform:
             return np.eye(3, dtype=np.float32), np.zeros(3, np.float32)
         ct = p.color_transform
-        kappa = float(ct.contrast)
-        mat = np.asarray(ct.gain, np.float64)[:, None] * (
-            kappa * np.eye(3) + (1.0 - kappa) * np.outer(np.ones(3), _LUMA))
-        n_off = 2.0 if effects.specular else 1.0
-        return mat.astype(np.float32), (n_off * np.asarray(ct.offset)).astype(np.float32)
+        return (ct.matrix().astype(np.float32),
+                (offset_count(effects) * np.asarray(ct.offset)).astype(np.float32))
 
-    def _bases(self, rs: RenderState, k: int):
-        """Face pixels and their interpolated albedo means and bases (cached per ray cast)."""
+    def _face_bases(self, rs: RenderState, k: int):
+        """Face pixels and their interpolated albedo means and bases (kept per ray cast)."""
+        key = (stage_key(rs.versions, "albedo_bases"), k)
+        if self._bases[0] == key:
+            return self._bases[1]
         hits = rs.hits
-        if self._bases_key is not None and self._bases_key[0] is hits and \
-                self._bases_key[1] == k:
-            return self._bases_value
         face = np.flatnonzero((hits.prim_id >= 0) & self._ok)
         n_face = face.size
         if n_face > self.n_points:  # the first n_points in the fixed random order
             face = face[np.argpartition(self._rank[face], self.n_points)[: self.n_points]]
         tri = self.renderer.model.triangles[hits.prim_id[face]]
-        u, v = hits.bary[face, 0].astype(np.float32), hits.bary[face, 1].astype(np.float32)
-        w = np.stack([1.0 - u - v, u, v], axis=1)  # (N, 3 corners)
-        diffuse = interp(w, tri, *self._diffuse, k)
-        specular = None if self._specular is None else interp(w, tri, *self._specular, k)
-        ref_d = np.einsum("nk,nkc->nc", w, self._diffuse_hi[tri])
-        ref_s = None if self._specular_hi is None else np.einsum("nk,nkc->nc", w,
-                                                                  self._specular_hi[tri])
-        self._bases_key = (hits, k)
-        self._bases_value = (face, diffuse, specular, ref_d, ref_s,
-                             n_face / max(face.size, 1))
-        return self._bases_value
+        w = corner_weights(hits, face)
 
-    def _compute(self, rs: RenderState, p: RenderParameter, k: int):
+        def at_pixels(mean_basis):
+            mean, basis = mean_basis
+            return barycentric(w, tri, mean), barycentric(w, tri, basis[..., :k])
+
+        diffuse = at_pixels(self._diffuse)
+        specular = None if self._specular is None else at_pixels(self._specular)
+        ref_d = barycentric(w, tri, self._diffuse_hi)
+        ref_s = None if self._specular_hi is None else barycentric(w, tri, self._specular_hi)
+        value = (face, diffuse, specular, ref_d, ref_s, n_face / max(face.size, 1))
+        self._bases = (key, value)
+        return value
+
+    def _compute(self, rs: RenderState, p: RenderParameter, k: int, key: tuple):
         hits = rs.hits
         if hits.prim_id.shape[0] != self._target.shape[0]:
             raise InputError("albedo data: render and target image sizes differ")
         if k == 0 or rs.pixel_light.constant is not None:  # a directional Blinn-Phong term
             return None
-        face, (md, bd), spec, ref_d, ref_s, weight = self._bases(rs, k)
+        face, (md, bd), spec, ref_d, ref_s, weight = self._face_bases(rs, k)
         if face.size == 0:
             return None
         light = rs.pixel_light
@@ -167,11 +160,4 @@ class RenderAlbedoData:
             jac = np.einsum("cd,ndj->ncj", mat, jac)
             mean, bright = mean @ mat.T, bright @ mat.T
         return albedo_system(jac, mean, bright, self._target[face].astype(np.float32), off,
-                             self._rank[face], face.size, weight)
-
-
-def interp(w: np.ndarray, tri: np.ndarray, mean: np.ndarray, basis: np.ndarray, k: int):
-    """Barycentric interpolation of per-vertex means (n, 3) and bases (n, 3, K) at pixels."""
-    m = np.einsum("nk,nkc->nc", w, mean[tri])
-    b = np.einsum("nk,nkcj->ncj", w, basis[tri][..., :k] if k < basis.shape[2] else basis[tri])
-    return m, b
+                             self._rank[face], face.size, weight, key)

@@ -5,7 +5,8 @@ A :class:`ChainRecorder` is the sampler's callback; it fills a
 
 * per step (after the step): ``log_prior``, ``log_lik_lm``, ``log_lik_img``,
   the proposal (index into ``proposal_names``), ``accepted`` and
-  ``rejected_by`` (0 accepted, 1 landmarks, 2 prior, 3 image);
+  ``rejected_by`` (0 accepted, 1 landmarks, 2 prior, 3 image, 4 joint test, 5 identity move:
+  :data:`mcmcfit.sampling.kernel.REJECTION_STAGES`);
 * every ``thin``-th step: the parameter vector (:class:`~mcmcfit.sampling.param_vector.ParamLayout`);
 * the best states by image likelihood (the reference's result), by landmark
   likelihood (the reference's ``lminit``) and by log posterior, over every
@@ -24,6 +25,7 @@ import json
 import os
 import time
 from dataclasses import dataclass, field
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -33,7 +35,7 @@ from albedo_model.io.atomic import atomic_path
 from albedo_model.io.rps import format_rps_text, parse_rps_text
 from albedo_model.params import RenderParameter
 from mcmcfit.sampling.param_vector import ParamLayout
-from mcmcfit.sampling.kernel import ChainState, StepInfo
+from mcmcfit.sampling.kernel import REJECTION_STAGES, ChainState, StepInfo
 
 __all__ = [
     "CHAIN_FILE_VERSION",
@@ -42,6 +44,7 @@ __all__ = [
     "ChainRecorder",
     "ChainResult",
     "ProposalStats",
+    "stacked_samples",
     "read_chains_h5",
     "write_chains_h5",
 ]
@@ -64,17 +67,53 @@ class BestSample(NamedTuple):
 
 
 class ProposalStats(NamedTuple):
-    """Counts for one proposal: proposed, accepted, and rejected by each stage."""
+    """Counts for one proposal: proposed, accepted, rejected by each stage, identity moves.
+
+    ``identity`` counts the steps whose move changed nothing (the proposal had
+    nothing to move); they are neither accepted nor rejected.
+    """
 
     proposed: int
     accepted: int
     rejected_landmarks: int
     rejected_prior: int
     rejected_image: int
+    rejected_joint: int = 0
+    identity: int = 0
 
     @property
     def acceptance_rate(self) -> float:
-        return self.accepted / self.proposed if self.proposed else float("nan")
+        """Accepted over proposed moves that moved (identity moves left out); NaN for none."""
+        moved = self.proposed - self.identity
+        return self.accepted / moved if moved else float("nan")
+
+
+def stacked_samples(records: Sequence[ChainRecord], size: int, *, discard: float = 0.0,
+                    flat: bool = False) -> np.ndarray:
+    """Kept samples of several chains after a burn-in, emcee's ``get_chain`` style.
+
+    Parameters
+    ----------
+    records : sequence of ChainRecord
+        One stage of each chain.
+    size : int
+        Columns of a sample (the layout's size), for the empty case.
+    discard : float in [0, 1)
+        Leading fraction of each chain's samples dropped (of the shortest chain's count).
+    flat : bool
+        Pool the chains.
+
+    Returns
+    -------
+    (chains, n, size) float64, or (chains n, size) when ``flat``; chains are cut
+    to the shortest one.
+    """
+    if not records:
+        return np.zeros((0, size)) if flat else np.zeros((0, 0, size))
+    n = min(r.samples.shape[0] for r in records)
+    start = int(discard * n)
+    arr = np.stack([r.samples[start:n] for r in records])
+    return arr.reshape(-1, size) if flat else arr
 
 
 def _best(state: ChainState, step: int) -> BestSample:
@@ -150,8 +189,8 @@ class ChainRecord:
         for i, name in enumerate(self.proposal_names):
             sel = self.proposal == i
             rb = self.rejected_by[sel]
-            out[name] = ProposalStats(int(sel.sum()), int((rb == 0).sum()), int((rb == 1).sum()),
-                                      int((rb == 2).sum()), int((rb == 3).sum()))
+            counts = np.bincount(rb.astype(np.int64), minlength=len(REJECTION_STAGES))
+            out[name] = ProposalStats(int(sel.sum()), *(int(c) for c in counts[:6]))
         return out
 
     def time_by_proposal(self) -> dict[str, float]:

@@ -8,7 +8,8 @@ double-buffered scenes; see :meth:`Target.accept` / :meth:`Target.reject`).
 
 One step (Schönborn et al. 2017; scalismo's ``MH(Filter_prior(Filter_lm(q)), l_img)``):
 
-1. ``move = proposal(rng, x)`` gives x' and ``log_q_ratio = log q(x|x') - log q(x'|x)``;
+1. ``move = proposal(rng, state)`` gives x' and ``log_q_ratio = log q(x|x') - log q(x'|x)``
+   (the proposal is handed the accepted state itself: x and, in stage 2, its render);
 2. **landmark filter**: accept with ``a1 = l_lm(x') - l_lm(x) + log_q_ratio``;
 3. **prior filter**: accept with ``a2 = log p(x') - log p(x)``;
 4. **image step** (stage 2 only): render x' (only the stages its ``touched``
@@ -16,7 +17,10 @@ One step (Schönborn et al. 2017; scalismo's ``MH(Filter_prior(Filter_lm(q)), l_
 
 A rejection at any stage returns x. Moves flagged ``joint`` (proposals drawing
 from an approximate conditional, whose ratio nearly cancels the prior and
-image ratios) take one plain MH test on the whole ratio instead. The rest is
+image ratios) take one plain MH test on the whole ratio instead; their
+rejections have their own code (``REJECTED_JOINT``). A move that changes
+nothing (``touched`` empty: a proposal with nothing to move) is neither
+accepted nor rejected: it is recorded as ``IDENTITY`` and draws no uniform. The rest is
 delayed acceptance (Christen & Fox 2005) for the product ``l_lm p l_img``: the
 overall acceptance ``min(1, r1) min(1, r2) min(1, r3)`` satisfies detailed balance because
 ``pi_i(x) min(1, pi_i(x') / pi_i(x)) = min(pi_i(x), pi_i(x'))`` is symmetric
@@ -28,7 +32,11 @@ Acceptance uses one uniform per evaluated stage: accept iff ``log u < a``.
 in a factor has ratio 0 in that factor (the reference's rule), so a chain
 started where nothing renders can still walk until the face appears.
 
-This module imports only :mod:`albedo_model.params` and :mod:`proposals.base`.
+The landmark factor is evaluated only when the move touched a block of
+``STAGE_DEPS["landmarks"]`` (:mod:`albedo_model.render.cache_table`).
+
+This module imports only :mod:`albedo_model.params`, :mod:`albedo_model.render.cache_table`
+and :mod:`proposals.base`.
 """
 
 from __future__ import annotations
@@ -40,12 +48,14 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 
 from albedo_model.params import Block, RenderParameter
+from albedo_model.render.cache_table import stale
 from proposals.base import Proposal
 
 __all__ = [
     "ACCEPTED",
-    "LANDMARK_BLOCKS",
+    "IDENTITY",
     "REJECTED_IMAGE",
+    "REJECTED_JOINT",
     "REJECTED_LANDMARKS",
     "REJECTED_PRIOR",
     "REJECTION_STAGES",
@@ -57,12 +67,9 @@ __all__ = [
     "step",
 ]
 
-#: Blocks the landmark likelihood depends on; other moves keep the current value.
-LANDMARK_BLOCKS = Block.POSE | Block.CAMERA | Block.SHAPE | Block.EXPRESSION
-
-ACCEPTED, REJECTED_LANDMARKS, REJECTED_PRIOR, REJECTED_IMAGE = 0, 1, 2, 3
-#: ``StepInfo.rejected_by`` codes, by name.
-REJECTION_STAGES = ("accepted", "landmarks", "prior", "image")
+ACCEPTED, REJECTED_LANDMARKS, REJECTED_PRIOR, REJECTED_IMAGE, REJECTED_JOINT, IDENTITY = range(6)
+#: ``StepInfo.rejected_by`` codes, by name ("identity": the move changed nothing).
+REJECTION_STAGES = ("accepted", "landmarks", "prior", "image", "joint", "identity")
 
 
 class ChainState(NamedTuple):
@@ -100,9 +107,10 @@ class StepInfo(NamedTuple):
     proposal : str
         Name of the proposal leaf that produced the move.
     accepted : bool
+        The chain moved to the proposed state (False for an identity move).
     rejected_by : int
-        0 accepted, 1 landmark filter, 2 prior filter, 3 image step
-        (:data:`REJECTION_STAGES`).
+        0 accepted, 1 landmark filter, 2 prior filter, 3 image step, 4 the joint
+        test of a ``joint`` move, 5 an identity move (:data:`REJECTION_STAGES`).
     log_alpha : float
         Log acceptance ratio of the last stage evaluated.
     touched : Block
@@ -187,13 +195,13 @@ def step(rng: np.random.Generator, state: ChainState, target: Target, proposal: 
     -------
     (ChainState, StepInfo)
     """
-    move = proposal(rng, state.params)
+    move = proposal(rng, state)
     if move.touched == Block.NONE:
-        return state, StepInfo(move.name, True, ACCEPTED, 0.0, Block.NONE)
+        return state, StepInfo(move.name, False, IDENTITY, 0.0, Block.NONE)
     new = move.params
     if move.joint:
         return _joint_step(rng, state, target, move, image=image)
-    if move.touched & LANDMARK_BLOCKS:
+    if stale("landmarks", move.touched):
         lm = float(target.log_lik_landmarks(new))
     else:
         lm = state.log_lik_lm
@@ -221,24 +229,24 @@ def _joint_step(rng: np.random.Generator, state: ChainState, target: Target, mov
                 image: bool) -> tuple[ChainState, StepInfo]:
     """One plain MH step on the whole ratio ``l_lm p l_img`` (for ``move.joint`` proposals)."""
     new = move.params
-    lm = float(target.log_lik_landmarks(new)) if move.touched & LANDMARK_BLOCKS \
+    lm = float(target.log_lik_landmarks(new)) if stale("landmarks", move.touched) \
         else state.log_lik_lm
     lp = float(target.log_prior(new))
     a = (_log_ratio(lm, state.log_lik_lm) + _log_ratio(lp, state.log_prior)
          + float(move.log_q_ratio))
     if not image:
         if math.isnan(a) or not _accept(rng, a):
-            return state, StepInfo(move.name, False, REJECTED_PRIOR, a, move.touched)
+            return state, StepInfo(move.name, False, REJECTED_JOINT, a, move.touched)
         return (ChainState(new, lp, lm, state.log_lik_img, None),
                 StepInfo(move.name, True, ACCEPTED, a, move.touched))
-    if a == -math.inf or math.isnan(a):
-        return state, StepInfo(move.name, False, REJECTED_PRIOR, a, move.touched)
+    if a == -math.inf or math.isnan(a):  # no render can save it: rejected before rendering
+        return state, StepInfo(move.name, False, REJECTED_JOINT, a, move.touched)
     rs = target.render(state.render_state, new, move.touched)
     li = float(target.log_lik_image(rs))
     a += _log_ratio(li, state.log_lik_img)
     if math.isnan(a) or not _accept(rng, a):
         target.reject(rs)
-        return state, StepInfo(move.name, False, REJECTED_IMAGE, a, move.touched)
+        return state, StepInfo(move.name, False, REJECTED_JOINT, a, move.touched)
     rs = target.accept(rs)
     return ChainState(new, lp, lm, li, rs), StepInfo(move.name, True, ACCEPTED, a, move.touched)
 

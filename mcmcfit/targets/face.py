@@ -4,10 +4,12 @@ Renders with :class:`albedo_model.render.renderer.Renderer` (linear output, as
 compared), evaluates :class:`~mcmcfit.targets.image.ImageLikelihood` on the
 shader output (fused with the shading in one ``jit`` through
 ``Renderer.compose`` when the renderer offers it), the landmark (or face-box)
-likelihood on the parameters, and the prior. It remembers the accepted render state (:attr:`FaceTarget.current`)
-for the SH light solver's data.
+likelihood on the parameters, and the prior. It holds no chain state: the
+accepted render lives in the sampler's :class:`~mcmcfit.sampling.kernel.ChainState`
+(and reaches the data-driven proposals through it).
 
-This module imports :mod:`albedo_model` and :mod:`mcmcfit`.
+This module imports :mod:`albedo_model.render`, :mod:`mcmcfit.targets.image` and
+:mod:`mcmcfit.targets.priors`.
 """
 
 from __future__ import annotations
@@ -50,7 +52,6 @@ class FaceTarget:
         self.image_likelihood = image_likelihood
         self.landmarks = landmarks
         self.prior = prior
-        self.current: RenderState | None = None
         self._fused = None
         if image_likelihood is not None and hasattr(renderer, "compose"):
             self._fused = renderer.compose(image_likelihood.pixel_set_fn, pixel_set=True)
@@ -62,8 +63,8 @@ class FaceTarget:
         return 0.0 if self.landmarks is None else float(self.landmarks.log_lik(params))
 
     def init_render(self, params: RenderParameter) -> RenderState:
-        self.current = self.renderer.init_state(params)
-        return self.current
+        """Render ``params`` from scratch; its geometry becomes the renderer's accepted one."""
+        return self.renderer.init_state(params)
 
     def render(self, render_state: RenderState, params: RenderParameter,
                touched: Block) -> RenderState:
@@ -78,8 +79,8 @@ class FaceTarget:
         return lik(self.renderer.shade(render_state))
 
     def accept(self, render_state: RenderState) -> RenderState:
-        self.current = self.renderer.accept(render_state)
-        return self.current
+        """Keep a candidate render: its geometry becomes the renderer's accepted one."""
+        return self.renderer.accept(render_state)
 
     def reject(self, render_state: RenderState) -> None:
         self.renderer.reject()

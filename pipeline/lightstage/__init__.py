@@ -2,8 +2,9 @@
 
 Modules
 -------
-capture_folder, io, spectral_csv
-    What ``pipeline build`` reads: the capture folder layout, meshes and photographs, spectra.
+capture_folder, spectral_csv
+    What ``pipeline build`` reads: the capture folder layout, spectra (meshes and
+    photographs are read by :mod:`pipeline.texturing.capture_io`).
 colour
     Camera spectral model and the calibrated colour transform RAW -> linear sRGB.
 polarisation
@@ -17,5 +18,6 @@ external_scans
 assembly, build
     The population stage (completion, modelling, evaluation) and the whole build.
 
-Imports :mod:`albedo_model`, :mod:`pipeline.texturing` and :mod:`pipeline.modelling`.
+This file imports nothing; its modules import :mod:`albedo_model`, :mod:`pipeline.texturing`
+and :mod:`pipeline.modelling`.
 """

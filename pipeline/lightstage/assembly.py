@@ -6,7 +6,8 @@ vertices, builds the shape model and the three albedo model variants, runs
 the leave-one-out comparison of the variants and writes everything. See
 :mod:`pipeline.lightstage.build` for the stages.
 
-Imports :mod:`albedo_model` and :mod:`pipeline` modules.
+This module imports :mod:`albedo_model`, :mod:`pipeline.lightstage` (``capture_folder``,
+``external_scans``), :mod:`pipeline.modelling` and :mod:`pipeline.texturing.inpainting`.
 """
 
 from __future__ import annotations

@@ -24,7 +24,9 @@ Per-subject results live in a work folder as ``<id>.npz``, keyed by a hash of
 the processing settings and the input files' names, sizes and modification
 times: a rerun skips finished subjects, and a changed input is reprocessed.
 
-Imports :mod:`albedo_model` and :mod:`pipeline` modules.
+This module imports :mod:`albedo_model` (``errors``, ``io.atomic``), :mod:`pipeline.lightstage`
+modules and, when a subject is processed, :mod:`pipeline.texturing` (``cameras``,
+``capture_io``).
 """
 
 from __future__ import annotations
@@ -114,7 +116,7 @@ class BuildReport(NamedTuple):
 
 
 def options_from_spec(spec: LightstageSpec) -> ProcessingOptions:
-    """Processing options of a parsed ``lightstage.json``."""
+    """Return the processing options of a parsed ``lightstage.json``."""
     return ProcessingOptions(
         colour=spec.colour(), leds_camera=spec.leds_mm, led_intensity=spec.led_intensity,
         centre_camera=spec.centre_mm, exposure=spec.exposure, iso_reference=spec.iso_reference,
@@ -133,7 +135,7 @@ def _cache_key(spec: LightstageSpec, files: list[Path]) -> str:
 
 
 def _load_registered(path: Path, template: TemplateInfo) -> np.ndarray:
-    from pipeline.lightstage.io import load_mesh
+    from pipeline.texturing.capture_io import load_mesh
 
     v, _ = load_mesh(path)
     if len(v) != len(template.vertices):
@@ -144,9 +146,9 @@ def _load_registered(path: Path, template: TemplateInfo) -> np.ndarray:
 def process_subject_entry(entry: SubjectEntry, template: TemplateInfo,
                           options: ProcessingOptions) -> tuple[SubjectAlbedo, np.ndarray]:
     """Stitched albedo of one subject folder, and its registered vertices (n, 3)."""
-    from pipeline.texturing.cameras import load_cameras
-    from pipeline.lightstage.io import load_view_images
     from pipeline.lightstage.processing import process_subject
+    from pipeline.texturing.cameras import load_cameras
+    from pipeline.texturing.capture_io import load_view_images
 
     rig = load_cameras(entry.cameras)
     if len(rig.cameras) != len(entry.view_names):
@@ -164,7 +166,7 @@ def _process_external(entry: ExternalEntry, template: TemplateInfo,
                       spec: LightstageSpec) -> tuple[ExternalScan, np.ndarray]:
     from pipeline.lightstage.external_scans import sample_external_scan
     from pipeline.texturing.cameras import load_cameras
-    from pipeline.lightstage.io import load_view_images
+    from pipeline.texturing.capture_io import load_view_images
 
     rig = load_cameras(entry.cameras)
     verts = _load_registered(entry.registered, template)

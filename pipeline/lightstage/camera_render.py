@@ -42,7 +42,7 @@ def _rays(focal: float, pp: tuple[float, float], size: tuple[int, int],
 
 
 def camera_frame_rays(camera: LightstageCamera) -> tuple[np.ndarray, np.ndarray]:
-    """Unit ray directions of all pixel centres in the camera frame (cached).
+    """Return the unit ray directions of all pixel centres in the camera frame (cached).
 
     Returns
     -------

@@ -46,7 +46,9 @@ Layout (real lightstage data can be dropped in the same way)::
      "shadows": true,                    LEDs hidden by the face do not count
      "specular_exponent": 20}
 
-Imports :mod:`albedo_model` and :mod:`pipeline` modules.
+This module imports :mod:`albedo_model` (``errors``, ``io.atomic``),
+:mod:`pipeline.lightstage.colour` and :mod:`pipeline.texturing.json_files`;
+:meth:`LightstageSpec.colour` imports :mod:`pipeline.lightstage.spectral_csv`.
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ from pipeline.lightstage.colour import (
     camera_sensitivities,
     illuminant_spd,
 )
+from pipeline.texturing.json_files import read_json_object
 
 __all__ = [
     "FORMAT", "LightstageSpec", "SubjectEntry", "TemplateInfo", "list_subjects",
@@ -83,18 +86,6 @@ def write_json(path: str | os.PathLike, data: Any) -> None:
     """Write JSON atomically (indented)."""
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(data, indent=1) + "\n")
-
-
-def _read_json(path: Path) -> dict:
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
-    try:
-        data = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(path, f"not a JSON file ({exc.__class__.__name__})") from None
-    if not isinstance(data, dict):
-        raise FormatError(path, "must hold a JSON object")
-    return data
 
 
 def _number(data: dict, key: str, path: Path, default: float | None = None) -> float:
@@ -123,7 +114,7 @@ class LightstageSpec:
     folder: Path | None = None
 
     def to_json(self) -> dict:
-        """The JSON object of this spec."""
+        """Return the JSON object of this spec."""
         return {
             "format": FORMAT, "version": VERSION, "camera": self.camera,
             "illuminant": self.illuminant, "raw_to_xyz": self.raw_to_xyz,
@@ -138,7 +129,7 @@ class LightstageSpec:
         }
 
     def colour(self) -> CameraColour:
-        """The calibrated camera (:class:`CameraColour`) the spec names."""
+        """Return the calibrated camera (:class:`CameraColour`) the spec names."""
         from pipeline.lightstage.spectral_csv import read_spectral_csv
 
         base = self.folder or Path(".")
@@ -178,7 +169,7 @@ def read_lightstage(folder: str | os.PathLike) -> LightstageSpec:
         Missing file or malformed fields (the message names the file).
     """
     path = Path(folder) / "lightstage.json"
-    data = _read_json(path)
+    data = read_json_object(path)
     if data.get("format") != FORMAT:
         raise FormatError(path, f"'format' must be {FORMAT!r}")
     try:
@@ -236,8 +227,11 @@ class TemplateInfo:
 
 
 def write_template(folder: str | os.PathLike, template: Any) -> None:
-    """Write ``template.npz`` from a TemplateHead-like object (vertices, triangles, symmetry,
-    landmarks name -> index, regions with ``eyeballs``)."""
+    """Write ``template.npz`` from a TemplateHead-like object.
+
+    The object supplies vertices, triangles, symmetry, landmarks name -> index and
+    regions with ``eyeballs``.
+    """
     names = sorted(template.landmarks)
     eyes = np.asarray(template.regions.get("eyeballs", np.zeros(len(template.vertices), bool)))
     with atomic_path(Path(folder) / "template.npz") as tmp, open(tmp, "wb") as fh:
@@ -303,7 +297,7 @@ class SubjectEntry:
 
 def _subject_entry(folder: Path) -> SubjectEntry:
     path = folder / "subject.json"
-    data = _read_json(path)
+    data = read_json_object(path)
     views = data.get("views")
     if not isinstance(views, list) or not views:
         raise FormatError(path, "'views' must be a non-empty list")

@@ -17,8 +17,10 @@ summing to 1, as the paper writes it, would turn white pink because the sRGB
 matrix's rows sum to (1.205, 0.948, 0.909).
 
 colour-science is imported lazily (it takes ~0.5-2 s) and every spectral table
-is cached; cached arrays are read-only. The lightstage pipeline reuses this
-module. Imports nothing from the project but :mod:`albedo_model.errors`.
+is cached; cached arrays are read-only. The synthetic lightstage
+(:mod:`pipeline.synthetic`) reuses this module.
+
+This module imports nothing from the project but :mod:`albedo_model.errors`.
 """
 
 from __future__ import annotations
@@ -124,7 +126,7 @@ def cie_cmfs(grid: tuple[float, float, float] = DEFAULT_GRID) -> np.ndarray:
 
 @lru_cache(maxsize=4)
 def training_reflectances(grid: tuple[float, float, float] = DEFAULT_GRID) -> np.ndarray:
-    """The 190 rawtoaces training reflectances shipped with colour-science, (190, D)."""
+    """Return the 190 rawtoaces training reflectances shipped with colour-science, (190, D)."""
     from colour.characterisation import read_training_data_rawtoaces_v1
 
     return _readonly(_aligned(read_training_data_rawtoaces_v1(), grid).T)
@@ -306,7 +308,7 @@ def camera_colour(
     method: Method = "training",
     grid: tuple[float, float, float] = DEFAULT_GRID,
 ) -> CameraColour:
-    """The calibrated camera of the synthetic lightstage (cached).
+    """Return the calibrated camera of the synthetic lightstage (cached).
 
     Parameters
     ----------
@@ -338,7 +340,10 @@ def camera_colour_from_spectra(
     method: Method = "training",
     grid: tuple[float, float, float] = DEFAULT_GRID,
 ) -> CameraColour:
-    """A :class:`CameraColour` from given spectra (e.g. from :func:`read_spectral_csv`).
+    """Build a :class:`CameraColour` from given spectra.
+
+    The spectra may come from, e.g.,
+    :func:`~pipeline.lightstage.spectral_csv.read_spectral_csv`.
 
     Parameters
     ----------

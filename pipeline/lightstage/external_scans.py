@@ -24,13 +24,13 @@ Folder layout: ``CAPTURES/external/<id>/scan.json`` (see
 :mod:`pipeline.lightstage.capture_folder`), its maps, ``cameras.json`` (one view) and the
 registered mesh.
 
-Imports :mod:`albedo_model` and :mod:`pipeline` modules.
+This module imports :mod:`albedo_model.errors` and :mod:`pipeline.texturing` (``cameras``,
+``json_files``, ``poisson_stitching``, ``view_sampling``).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from pathlib import Path
 from typing import NamedTuple
@@ -39,6 +39,7 @@ import numpy as np
 
 from albedo_model.errors import FormatError, InputError
 from pipeline.texturing.cameras import LightstageCamera
+from pipeline.texturing.json_files import read_json_object
 from pipeline.texturing.poisson_stitching import stitch
 from pipeline.texturing.view_sampling import bilinear_sample, sample_view
 
@@ -84,7 +85,7 @@ def sample_external_scan(diffuse_map: np.ndarray, specular_map: np.ndarray,
                          triangles: np.ndarray, *, iso: float, iso_reference: float = 100.0,
                          gamma: float = 2.2,
                          boundary_distance_px: float = 100.0) -> ExternalScan:
-    """Steps 1-3 of the module notes for one scan.
+    """Run steps 1-3 of the module notes for one scan.
 
     Parameters
     ----------
@@ -165,7 +166,7 @@ def fit_colour_transform(source: np.ndarray, target: np.ndarray, *,
 
 
 def apply_colour_transform(maps: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    """``maps @ matrix.T`` for (..., 3) colour maps."""
+    """Return ``maps @ matrix.T`` for (..., 3) colour maps."""
     return np.asarray(maps, np.float64) @ np.asarray(matrix, np.float64).T
 
 
@@ -233,12 +234,7 @@ class ExternalEntry:
 
 def _entry(folder: Path) -> ExternalEntry:
     path = folder / "scan.json"
-    try:
-        data = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(path, f"not a JSON file ({exc.__class__.__name__})") from None
-    if not isinstance(data, dict):
-        raise FormatError(path, "must hold a JSON object")
+    data = read_json_object(path)
     iso, gamma = data.get("iso", 100.0), data.get("gamma", 2.2)
     for key, value in (("iso", iso), ("gamma", gamma)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
@@ -254,7 +250,7 @@ def _entry(folder: Path) -> ExternalEntry:
 
 
 def list_external(folder: str | os.PathLike) -> list[ExternalEntry]:
-    """Scans under ``folder/external`` (sorted by name) that hold a ``scan.json``."""
+    """List the scans under ``folder/external`` (sorted by name) that hold a ``scan.json``."""
     root = Path(folder) / "external"
     if not root.is_dir():
         return []

@@ -37,7 +37,9 @@ def _check_t(transmission: float) -> float:
 
 def polarised_pair(diffuse: np.ndarray, specular: np.ndarray | None, *,
                    transmission: float = IDEAL_TRANSMISSION) -> tuple[np.ndarray, np.ndarray]:
-    """The photometric image pair of a scene's diffuse and specular radiance (forward model).
+    """Simulate the photometric image pair of a scene's diffuse and specular radiance.
+
+    This is the forward model.
 
     Parameters
     ----------

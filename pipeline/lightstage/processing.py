@@ -2,7 +2,8 @@
 
 For each photometric view (Smith et al. 2020, Sec. 2-3):
 
-1. separation: ``D = I_perp / t``, ``S = I_para - I_perp`` (:mod:`pipeline.lightstage.polarisation`);
+1. separation: ``D = I_perp / t``, ``S = I_para - I_perp``
+   (:mod:`pipeline.lightstage.polarisation`);
 2. intrinsic albedo images: the shading of the registered mesh in that view
    is rendered per pixel -- the LED irradiance ``E/E_ref`` for diffuse and
    the summed specular lobe ``L_spec`` for specular
@@ -27,7 +28,8 @@ better views; below ``min_shading`` the sample is invalid. Diffuse and
 specular are stitched separately (:mod:`pipeline.texturing.poisson_stitching`; reference = the
 camera file's reference view, the frontal one).
 
-Imports :mod:`albedo_model` and :mod:`pipeline` modules.
+This module imports :mod:`albedo_model`, :mod:`pipeline.lightstage` modules and
+:mod:`pipeline.texturing` (``cameras``, ``poisson_stitching``, ``view_sampling``).
 """
 
 from __future__ import annotations

@@ -9,5 +9,5 @@ symmetry
 generalisation
     Leave-one-out generalisation of the specular variants.
 
-Imports :mod:`albedo_model` only.
+This file imports nothing; its modules import only :mod:`albedo_model` (and each other).
 """

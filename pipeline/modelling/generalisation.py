@@ -18,7 +18,7 @@ subjects (with symmetry augmentation, as the real model is built), then
 Error of a subject: root mean square over all vertices and channels (linear
 sRGB). Results are averaged over subjects.
 
-Imports only albedo_model and :mod:`pipeline.modelling.pca_variants`; matplotlib is
+Imports only :mod:`albedo_model` and :mod:`pipeline.modelling.pca_variants`; matplotlib is
 imported lazily by :func:`plot_specular_generalisation`.
 """
 

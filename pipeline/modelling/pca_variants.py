@@ -39,7 +39,9 @@ augmented data set is closed under mirroring, so its mean is symmetric and the
 PCA span is mirror-invariant.
 
 Maps are (S, n, 3) arrays in linear sRGB and are flattened per vertex
-interleaved (r0 g0 b0 r1 ...), the PCAPart layout. Imports only albedo_model.
+interleaved (r0 g0 b0 r1 ...), the PCAPart layout.
+
+This module imports only :mod:`albedo_model` (``errors``, ``pca``).
 """
 
 from __future__ import annotations

@@ -13,6 +13,6 @@ default_model
 head
     The procedural template head and its shape model.
 
-Imports :mod:`albedo_model`, :mod:`pipeline.lightstage`, :mod:`pipeline.texturing` and
-:mod:`pipeline.modelling`.
+This file imports nothing; its modules import :mod:`albedo_model`, :mod:`pipeline.lightstage`,
+:mod:`pipeline.texturing` and :mod:`pipeline.modelling`.
 """

@@ -6,7 +6,8 @@ gamma-encoded with the pure 2.2 power, and laid out in a grid with titles
 (matplotlib). Used to look at recovered maps next to the truth (seams show
 up as edges that the truth does not have).
 
-Imports :mod:`albedo_model` and :mod:`pipeline` modules.
+This module imports :mod:`albedo_model`, :mod:`pipeline.lightstage.camera_render` and
+:mod:`pipeline.synthetic.dome`.
 """
 
 from __future__ import annotations

@@ -44,7 +44,9 @@ Effects (:class:`CaptureEffects`) are switches; an effect that is off is not
 computed: no specular lobe, no occlusion rays, no noise draws, no
 displacement field, no extra-camera renders, zero distortion, ISO 100.
 
-Imports :mod:`albedo_model` and :mod:`pipeline` modules only.
+This module imports :mod:`albedo_model`, :mod:`pipeline.lightstage` (``camera_render``,
+``colour``, ``dome_shading``, ``polarisation``), :mod:`pipeline.texturing.cameras`,
+:mod:`pipeline.synthetic.dome` and :mod:`pipeline.synthetic.skin_spectral`.
 """
 
 from __future__ import annotations
@@ -204,7 +206,7 @@ def exposure_constant(colour: CameraColour, white_level: float) -> float:
 
 def misalignment_field(vertices: np.ndarray, rng: np.random.Generator, *, rms_mm: float,
                        length_mm: float, n_features: int = 32) -> np.ndarray:
-    """A smooth random displacement of the vertices, (n, 3) mm with RMS length about ``rms_mm``.
+    """Draw a smooth random displacement of the vertices, (n, 3) mm, RMS length ~``rms_mm``.
 
     Random Fourier features (frequencies ~ N(0, I / length^2)): a draw of a
     Gaussian process with squared-exponential covariance, independent per axis.

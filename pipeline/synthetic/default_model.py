@@ -6,6 +6,10 @@ spectral-skin subjects, symmetry-augmented PCA of diffuse and specular albedo
 (the paper's "transferred" variant: one shared coefficient vector), and returns
 a :class:`MorphableModel` whose metadata marks it synthetic. The file is written
 in the AlbedoMM layout, so it is read by the same loader as AlbedoMM/BFM files.
+
+This module imports :mod:`albedo_model`; :mod:`pipeline.lightstage.colour`,
+:mod:`pipeline.modelling.pca_variants`, :mod:`pipeline.synthetic.subjects` and
+:mod:`pipeline.synthetic.head` modules are imported when the model is built.
 """
 
 from __future__ import annotations

@@ -51,7 +51,9 @@ _PHOTOMETRIC_DISTORTION = (-0.06, 0.02, 0.0, 2e-4, -1e-4)
 
 
 def dome_leds(radius_mm: float = DOME_RADIUS_MM) -> np.ndarray:
-    """LED positions: a once-subdivided icosahedron without its lowest vertex, (41, 3) mm, rig frame.
+    """Return the LED positions, (41, 3) mm in the rig frame.
+
+    The LEDs sit on a once-subdivided icosahedron without its lowest vertex.
 
     One icosahedron vertex points straight down (-y) and is left out (the
     subject sits there); the dome keeps the 11 other vertices and the 30 edge
@@ -86,7 +88,7 @@ def dome_leds(radius_mm: float = DOME_RADIUS_MM) -> np.ndarray:
 def look_at_camera(centre: np.ndarray, target: np.ndarray, *, focal_px: float,
                    image_size: tuple[int, int],
                    distortion: tuple[float, ...] = (0.0,) * 5) -> LightstageCamera:
-    """A camera at ``centre`` looking at ``target`` with +y up in the image (world -> camera).
+    """Make a camera at ``centre`` looking at ``target``, +y up in the image (world -> camera).
 
     Parameters
     ----------
@@ -140,7 +142,7 @@ class Rig:
 
 def build_rig(*, resolution: int = 512, extra_resolution: int = 384,
               distortion: bool = False) -> Rig:
-    """The synthetic lightstage.
+    """Build the synthetic lightstage.
 
     Parameters
     ----------
@@ -217,6 +219,6 @@ def pose_transform(pose: str, rng: np.random.Generator | None = None, *,
 
 
 def camera_in_mesh_frame(camera: LightstageCamera, pose: PoseTransform) -> LightstageCamera:
-    """The rig camera re-expressed with the posed mesh's frame as world."""
+    """Return the rig camera re-expressed with the posed mesh's frame as world."""
     return replace(camera, rotation=camera.rotation @ pose.rotation,
                    translation=camera.rotation @ pose.translation + camera.translation)

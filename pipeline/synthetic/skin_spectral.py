@@ -285,7 +285,7 @@ def skin_colour_table(
     blood_range: tuple[float, float] = (0.0, 0.30),
     shape: tuple[int, int] = (96, 61),
 ) -> SkinColourTable:
-    """The (cached) lookup table of :func:`skin_linear_srgb` under the default camera.
+    """Return the (cached) lookup table of :func:`skin_linear_srgb` under the default camera.
 
     Bilinear interpolation error on the default grid is below 1e-3 in linear sRGB.
     """
@@ -318,7 +318,7 @@ def tone_melanin(tone: np.ndarray | float) -> np.ndarray:
 
 
 def fitzpatrick_band(skin_type: int) -> tuple[float, float]:
-    """The range of skin tone ``t`` covered by Fitzpatrick type I..VI (1..6)."""
+    """Return the range of skin tone ``t`` covered by Fitzpatrick type I..VI (1..6)."""
     if skin_type not in FITZPATRICK_TYPES:
         raise InputError(f"Fitzpatrick type must be 1..6, got {skin_type!r}")
     return ((skin_type - 1) / 6.0, skin_type / 6.0)

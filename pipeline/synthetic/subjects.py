@@ -16,9 +16,10 @@ variation; beard and brows lower it, so it correlates with the diffuse map.
 Everything is linear sRGB. Subject ``i`` of seed ``s`` depends only on
 ``(s, i)``, never on how many subjects are made.
 
-Imports only :mod:`albedo_model.errors` and :mod:`pipeline.synthetic.skin_spectral`; the
-template is any object with the :class:`HeadTemplate` attributes (in practice
+The template is any object with the :class:`HeadTemplate` attributes (in practice
 ``pipeline.synthetic.head.template_head.TemplateHead``).
+
+This module imports only :mod:`albedo_model.errors` and :mod:`pipeline.synthetic.skin_spectral`.
 """
 
 from __future__ import annotations
@@ -305,7 +306,7 @@ def make_subject(
 
 
 def make_subjects(template: HeadTemplate, n: int, seed: int) -> list[Subject]:
-    """A population of ``n`` synthetic subjects, Fitzpatrick types cycling I..VI.
+    """Make a population of ``n`` synthetic subjects, Fitzpatrick types cycling I..VI.
 
     Parameters
     ----------

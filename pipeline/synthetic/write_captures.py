@@ -1,4 +1,6 @@
-"""Write simulated lightstage captures in the capture-folder layout (:mod:`pipeline.lightstage.capture_folder`).
+"""Write simulated lightstage captures in the capture-folder layout.
+
+The layout is that of :mod:`pipeline.lightstage.capture_folder`.
 
 ``simulate_captures`` builds the procedural template head, a shape model, a
 population of synthetic subjects (:mod:`pipeline.synthetic.subjects`) and the rig
@@ -13,7 +15,9 @@ Subject ``i`` depends only on ``(seed, i)``; a subject whose ``subject.json``
 exists is skipped, so an interrupted run resumes. Subjects can be simulated
 in parallel worker processes.
 
-Imports :mod:`albedo_model` and :mod:`pipeline` modules.
+This module imports :mod:`albedo_model`, :mod:`pipeline.lightstage` (``camera_render``,
+``capture_folder``, ``colour``), :mod:`pipeline.texturing.cameras` and :mod:`pipeline.synthetic`
+modules (``capture``, ``dome``, ``subjects``, ``head``).
 """
 
 from __future__ import annotations
@@ -62,7 +66,7 @@ EXTERNAL_COLOUR = np.array([[0.62, 0.05, 0.0], [0.04, 0.55, 0.03], [0.0, 0.06, 0
 
 def cameras_json(cameras: list[LightstageCamera], images: list[str],
                  stitching: StitchSettings | None = None) -> dict:
-    """The camera-file object (:mod:`pipeline.texturing.cameras` format) of some views."""
+    """Return the camera-file object (:mod:`pipeline.texturing.cameras` format) of some views."""
     views = []
     for cam, image in zip(cameras, images):
         k1, k2, k3, p1, p2 = (float(x) for x in cam.distortion)
@@ -182,7 +186,7 @@ def _run_job(job: _Job) -> str:
 
 
 def _write_external(out: Path, job: _Job, rig, rng: np.random.Generator) -> None:
-    """A 3DRFE-like scan: gamma-encoded albedo maps seen by the frontal photometric camera."""
+    """Write a 3DRFE-like scan: gamma-encoded albedo maps seen by the frontal photometric camera."""
     from albedo_model.render.raycast import RayCaster
 
     out.mkdir(parents=True, exist_ok=True)

@@ -4,6 +4,8 @@ Modules
 -------
 cameras
     Calibrated cameras with lens distortion, and their JSON files.
+capture_io, json_files
+    Reading registered meshes and view photographs; reading JSON files of a capture.
 triangle_coverage
     Which pixel centres projected triangles cover.
 view_sampling
@@ -17,5 +19,5 @@ inpainting
 texture_preview
     Photographs beside renders of a stitched texture.
 
-Imports :mod:`albedo_model` only.
+This file imports nothing; its modules import :mod:`albedo_model` and one another.
 """

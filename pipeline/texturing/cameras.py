@@ -31,12 +31,11 @@ swaps them). Files from OpenCV calibrations set ``"pixel_origin": 0`` and
 ``"tangential": "opencv"``. A view's own ``intrinsics`` block overrides single
 fields of the shared one (cameras that refocus between captures).
 
-Imports only :mod:`albedo_model.errors`.
+Imports only :mod:`albedo_model.errors` and :mod:`pipeline.texturing.json_files`.
 """
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -45,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from albedo_model.errors import FormatError, InputError
+from pipeline.texturing.json_files import read_json_file
 
 __all__ = ["LightstageCamera", "LightstageRig", "StitchSettings", "load_cameras", "rig_from_dict"]
 
@@ -79,6 +79,7 @@ class LightstageCamera:
     distortion: np.ndarray = field(default_factory=lambda: np.zeros(5))
 
     def __post_init__(self) -> None:
+        """Validate the fields and store them as read-only float64 arrays and plain numbers."""
         for name, shape in (("rotation", (3, 3)), ("translation", (3,)),
                             ("principal_px", (2,)), ("distortion", (5,))):
             a = np.array(getattr(self, name), dtype=np.float64)
@@ -186,7 +187,7 @@ class LightstageCamera:
         return d / np.linalg.norm(d, axis=1, keepdims=True), ok
 
     def scaled(self, factor: float) -> LightstageCamera:
-        """The same camera for an image resampled by ``1/factor`` (pixel centres kept).
+        """Return the same camera for an image resampled by ``1/factor`` (pixel centres kept).
 
         A pixel of the reduced image covers ``factor x factor`` pixels of the
         original: ``u' = (u + 0.5) / factor - 0.5``.
@@ -336,10 +337,4 @@ def load_cameras(path: str | os.PathLike) -> LightstageRig:
         Not JSON, or malformed fields; the message names the file.
     """
     p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: file not found")
-    try:
-        data = json.loads(p.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(p, f"not a JSON file ({exc.__class__.__name__})") from None
-    return rig_from_dict(data, p)
+    return rig_from_dict(read_json_file(p), p)

@@ -16,7 +16,8 @@ artefacts) of each sample are completed in two steps.
        G_t I = G_t I_stat   on triangles whose vertices are all masked,
        G_t I = 0            on triangles mixing masked and unmasked vertices,
 
-   with ``G_t`` the per-triangle gradient (:func:`pipeline.texturing.poisson_stitching.gradient_operator`).
+   with ``G_t`` the per-triangle gradient
+   (:func:`pipeline.texturing.poisson_stitching.gradient_operator`).
    The paper writes the unmasked rows as (unit-weight) equations; here they
    are eliminated as hard constraints, which is the limit of that weighting
    and keeps the observed data untouched. The zero-gradient rows on the
@@ -138,7 +139,8 @@ def poisson_blend(values: np.ndarray, guess: np.ndarray, mask: np.ndarray,
     vertices : (n, 3) float array
     triangles : (m, 3) int array
     gradient : sparse (3m, n), optional
-        :func:`pipeline.texturing.poisson_stitching.gradient_operator` of the mesh (pass it to share).
+        :func:`pipeline.texturing.poisson_stitching.gradient_operator` of the mesh (pass it to
+        share).
 
     Returns
     -------

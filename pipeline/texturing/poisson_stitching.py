@@ -124,7 +124,10 @@ def gradient_weights(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 
 
 def gradient_operator(vertices: np.ndarray, triangles: np.ndarray) -> sp.csr_matrix:
-    """The gradient operator ``G`` (3m x n): rows ``d*m + t`` give component ``d`` on triangle ``t``."""
+    """Build the gradient operator ``G`` (3m x n) of a triangle mesh.
+
+    Rows ``d*m + t`` give component ``d`` on triangle ``t``.
+    """
     tri = np.asarray(triangles, np.int64)
     return _operator(gradient_weights(vertices, tri), tri, len(vertices))
 

@@ -22,7 +22,8 @@ and the scalars ``reference_view`` (0-based), ``lam``, ``boundary_distance_px``,
 ``no_view_weight`` and ``residual``. ``colour`` is the unclipped solution:
 gradient-domain blending can overshoot [0, 1] by a few per cent at a few vertices.
 
-Imports :mod:`albedo_model` and :mod:`pipeline`.
+This module imports :mod:`albedo_model` and :mod:`pipeline.texturing` modules (``cameras``,
+``capture_io``, ``poisson_stitching``, ``view_sampling``).
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ from albedo_model.errors import FormatError, InputError
 from albedo_model.io.atomic import atomic_path
 from albedo_model.render.raycast import RayCaster
 from pipeline.texturing.cameras import LightstageCamera, StitchSettings, load_cameras
-from pipeline.lightstage.io import load_mesh, load_view_images
+from pipeline.texturing.capture_io import load_mesh, load_view_images
 from pipeline.texturing.poisson_stitching import StitchResult, stitch
 from pipeline.texturing.view_sampling import ViewSamples, sample_views
 
@@ -67,7 +68,8 @@ class StitchRun(NamedTuple):
         Seconds per stage: "load mesh", "load images", "ray caster", "sampling",
         "silhouette", "visibility", "solve", "total".
     no_view_weight : float
-        Row weight of triangles without a view (:func:`pipeline.texturing.poisson_stitching.stitch`).
+        Row weight of triangles without a view
+        (:func:`pipeline.texturing.poisson_stitching.stitch`).
     """
 
     vertices: np.ndarray
@@ -92,7 +94,7 @@ def stitch_capture(mesh: str | os.PathLike, views: Sequence[str | os.PathLike],
     Parameters
     ----------
     mesh : path-like
-        Registered mesh (:func:`pipeline.lightstage.io.load_mesh`), in the cameras' world frame.
+        Registered mesh (:func:`pipeline.texturing.capture_io.load_mesh`), in the cameras' world frame.
     views : sequence of path-like
         One photograph per view of the camera file, in the file's order.
     cameras : path-like
@@ -100,7 +102,8 @@ def stitch_capture(mesh: str | os.PathLike, views: Sequence[str | os.PathLike],
     lam, boundary_distance_px, reference_view : optional
         Override the camera file's stitching settings.
     reference_region, no_view_weight, mask_scale :
-        See :func:`pipeline.texturing.poisson_stitching.stitch` and :func:`pipeline.texturing.view_sampling.sample_view`.
+        See :func:`pipeline.texturing.poisson_stitching.stitch` and
+        :func:`pipeline.texturing.view_sampling.sample_view`.
     threads : int
         Threads for decoding the photographs.
 

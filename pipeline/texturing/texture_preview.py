@@ -117,7 +117,7 @@ def stitch_preview(images: Sequence[np.ndarray], cameras: Sequence[LightstageCam
                    vertices: np.ndarray, triangles: np.ndarray, colour: np.ndarray,
                    selected_view: np.ndarray, *, factor: int = 4,
                    caster: RayCaster | None = None) -> np.ndarray:
-    """The comparison picture of the module notes.
+    """Compose the comparison picture of the module notes.
 
     Parameters
     ----------

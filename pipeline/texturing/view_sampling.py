@@ -7,14 +7,15 @@ vertex's projection, and a weight
 
 with ``n`` the unit vertex normal and ``c`` the camera centre. A vertex is
 valid when it projects inside the image, faces the camera (``w > 0``), has a
-free line of sight to the camera (occlusion rays, :func:`albedo_model.render.raycast.visible_points`)
-and lies at least ``boundary_distance_px`` from the occluding boundary: the
+free line of sight to the camera (occlusion rays,
+:func:`albedo_model.render.raycast.visible_points`) and lies at least
+``boundary_distance_px`` from the occluding boundary: the
 distance transform of the hole-filled silhouette of the projected mesh, so that
 background is not sampled onto the mesh. The silhouette is rasterised at a
 reduced resolution (``mask_scale``; its distances are accurate to about that
 many pixels), which is ample against a 100-pixel threshold.
 
-Imports :mod:`albedo_model` and :mod:`pipeline.texturing.cameras`,
+This module imports :mod:`albedo_model`, :mod:`pipeline.texturing.cameras` and
 :mod:`pipeline.texturing.triangle_coverage`.
 """
 

@@ -17,6 +17,7 @@ from albedo_model.params import (
     fit_to_image_size,
 )
 from proposals.base import Move
+from proposals.base import ProposalState
 
 
 def run_chain(proposal, log_target: Callable[[RenderParameter], float], start: RenderParameter,
@@ -34,7 +35,7 @@ def run_chain(proposal, log_target: Callable[[RenderParameter], float], start: R
     out = np.empty((n_steps, np.atleast_1d(features(start)).shape[0]))
     accepted = 0
     for i in range(n_steps):
-        move = proposal(rng, x)
+        move = proposal(rng, ProposalState(x))
         lp_new = log_target(move.params)
         log_alpha = lp_new - lp + move.log_q_ratio
         if np.log(rng.random()) < log_alpha:
@@ -50,8 +51,8 @@ class DropRatio:
     def __init__(self, inner):
         self.inner, self.name, self.touches = inner, inner.name, inner.touches
 
-    def __call__(self, rng, params) -> Move:
-        return self.inner(rng, params)._replace(log_q_ratio=0.0)
+    def __call__(self, rng, state) -> Move:
+        return self.inner(rng, state)._replace(log_q_ratio=0.0)
 
 
 def base_state(width: int = 250, height: int = 250) -> RenderParameter:
@@ -90,7 +91,7 @@ def changed_blocks(a: RenderParameter, b: RenderParameter) -> Block:
     if a.camera != b.camera:
         out |= Block.CAMERA
     for blk, fld in ((Block.SHAPE, "shape"), (Block.EXPRESSION, "expression"),
-                     (Block.ALBEDO, "color")):
+                     (Block.ALBEDO, "albedo")):
         if not np.array_equal(getattr(a.momo, fld), getattr(b.momo, fld)):
             out |= blk
     if (not np.array_equal(a.environment_map.coefficients, b.environment_map.coefficients)

@@ -10,6 +10,7 @@ from albedo_model.errors import InputError
 from albedo_model.params import Block
 from proposals.base import Move, Proposal, leaves, mixture
 from proposals.pose import FocalScaling, Rotation
+from proposals.base import ProposalState
 
 
 class Tagged:
@@ -45,7 +46,7 @@ def test_component_frequencies_match_weights():
     counts = np.zeros(4)
     p = base_state()
     for _ in range(n):
-        counts[int(mix(rng, p).name)] += 1
+        counts[int(mix(rng, ProposalState(p)).name)] += 1
     prob = weights / weights.sum()
     se = np.sqrt(prob * (1 - prob) / n)
     assert np.all(np.abs(counts / n - prob) < 4.5 * se)
@@ -57,7 +58,7 @@ def test_nested_mixture_leaf_probabilities_and_frequencies():
     probs = {leaf.name: w for w, leaf in leaves(outer)}
     assert probs == pytest.approx({"x": 0.125, "y": 0.375, "z": 0.5})
     rng, n = np.random.default_rng(1), 20_000
-    names = [outer(rng, base_state()).name for _ in range(n)]
+    names = [outer(rng, ProposalState(base_state())).name for _ in range(n)]
     for k, prob in probs.items():
         assert abs(names.count(k) / n - prob) < 4.5 * np.sqrt(prob * (1 - prob) / n)
 
@@ -65,7 +66,7 @@ def test_nested_mixture_leaf_probabilities_and_frequencies():
 def test_the_component_move_is_returned_unchanged():
     mix = mixture((1.0, Tagged("a", ratio=0.25)), (1.0, Tagged("b", ratio=-1.5)))
     for seed in range(10):
-        move = mix(np.random.default_rng(seed), base_state())
+        move = mix(np.random.default_rng(seed), ProposalState(base_state()))
         assert move.log_q_ratio == {"a": 0.25, "b": -1.5}[move.name]
 
 
@@ -77,7 +78,7 @@ def test_multiscale_log_normal_mixture_ratio_is_every_components_ratio():
     p = base_state()
     f = p.camera.focal_length
     for seed in range(20):
-        move = mix(np.random.default_rng(seed), p)
+        move = mix(np.random.default_rng(seed), ProposalState(p))
         f2 = move.params.camera.focal_length
 
         def q(a, b):  # density of b given a, sum over components (log-normal)

@@ -10,29 +10,30 @@ from albedo_model.errors import InputError
 from albedo_model.params import Block, MoMoCoefficients
 from proposals.base import mixture
 from proposals.coefficients import Caricature, CoefficientWalk
+from proposals.base import ProposalState
 
 N = 12_000
 
 
-def _state(shape=(), color=(), expression=()):
-    momo = MoMoCoefficients(np.asarray(shape, float), np.asarray(color, float),
+def _state(shape=(), albedo=(), expression=()):
+    momo = MoMoCoefficients(np.asarray(shape, float), np.asarray(albedo, float),
                             np.asarray(expression, float))
     return base_state()._replace(momo=momo)
 
 
-@pytest.mark.parametrize("block,field", [(Block.SHAPE, "shape"), (Block.ALBEDO, "color"),
+@pytest.mark.parametrize("block,field", [(Block.SHAPE, "shape"), (Block.ALBEDO, "albedo"),
                                          (Block.EXPRESSION, "expression")])
 def test_walk_moves_whole_vector_slice_or_one_chunk(block, field):
     rng = np.random.default_rng(0)
     p = _state(np.zeros(23), np.zeros(23), np.zeros(23))
-    whole = CoefficientWalk(block, 0.1)(rng, p)
+    whole = CoefficientWalk(block, 0.1)(rng, ProposalState(p))
     assert np.all(getattr(whole.params.momo, field) != 0)
-    part = CoefficientWalk(block, 0.1, index=slice(4, 9))(rng, p)
+    part = CoefficientWalk(block, 0.1, index=slice(4, 9))(rng, ProposalState(p))
     changed = np.flatnonzero(getattr(part.params.momo, field))
     np.testing.assert_array_equal(changed, np.arange(4, 9))
     seen = set()
     for _ in range(200):
-        move = CoefficientWalk(block, 0.1, block_size=10)(rng, p)
+        move = CoefficientWalk(block, 0.1, block_size=10)(rng, ProposalState(p))
         changed = np.flatnonzero(getattr(move.params.momo, field))
         assert move.log_q_ratio == 0.0 and move.touched == block
         chunk = (int(changed[0]), int(changed[-1]) + 1)
@@ -45,7 +46,7 @@ def test_walk_moves_whole_vector_slice_or_one_chunk(block, field):
 
 def test_walk_on_an_empty_vector_is_the_identity():
     p = _state(np.zeros(3))
-    move = CoefficientWalk(Block.EXPRESSION, 0.1, block_size=10)(np.random.default_rng(0), p)
+    move = CoefficientWalk(Block.EXPRESSION, 0.1, block_size=10)(np.random.default_rng(0), ProposalState(p))
     assert move.params is p and move.touched == Block.NONE and move.log_q_ratio == 0.0
 
 
@@ -59,11 +60,11 @@ def test_walk_chain_matches_gaussian():
 
 def test_caricature_scales_and_has_ratio_k_log_s():
     x = np.random.default_rng(2).normal(size=7)
-    move = Caricature(Block.ALBEDO, 0.2)(np.random.default_rng(3), _state(color=x))
+    move = Caricature(Block.ALBEDO, 0.2)(np.random.default_rng(3), ProposalState(_state(albedo=x)))
     s = move.params.momo.albedo / x
     np.testing.assert_allclose(s, s[0], rtol=1e-12)
     assert move.log_q_ratio == pytest.approx(7 * np.log(s[0]), rel=1e-12)
-    zero = Caricature(Block.ALBEDO, 0.2)(np.random.default_rng(3), _state(color=np.zeros(4)))
+    zero = Caricature(Block.ALBEDO, 0.2)(np.random.default_rng(3), ProposalState(_state(albedo=np.zeros(4))))
     assert zero.touched == Block.NONE
 
 

@@ -10,6 +10,7 @@ from albedo_model.errors import InputError
 from albedo_model.params import Block, ColorTransform
 from proposals.base import mixture
 from proposals.color_transform import ColorTransformWalk
+from proposals.base import ProposalState
 
 N = 12_000
 
@@ -17,7 +18,7 @@ N = 12_000
 def test_gain_contrast_and_offset_all_move():
     """The reference discards gain and contrast updates; here every part changes."""
     p = base_state()
-    move = ColorTransformWalk(0.01, 0.01, 1e-4)(np.random.default_rng(0), p)
+    move = ColorTransformWalk(0.01, 0.01, 1e-4)(np.random.default_rng(0), ProposalState(p))
     ct = move.params.color_transform
     assert move.touched == Block.COLOR_TRANSFORM
     assert all(g != 1.0 for g in ct.gain) and ct.contrast != 1.0
@@ -28,7 +29,7 @@ def test_gain_contrast_and_offset_all_move():
 
 def test_zero_sigmas_keep_their_part():
     p = base_state()
-    ct = ColorTransformWalk(0.0, 0.0, 0.1)(np.random.default_rng(1), p).params.color_transform
+    ct = ColorTransformWalk(0.0, 0.0, 0.1)(np.random.default_rng(1), ProposalState(p)).params.color_transform
     assert ct.gain == (1.0, 1.0, 1.0) and ct.contrast == 1.0 and ct.offset != (0.0, 0.0, 0.0)
     with pytest.raises(InputError):
         ColorTransformWalk(0.0, 0.0, 0.0)

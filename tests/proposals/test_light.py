@@ -8,7 +8,7 @@ from mh_chain import DropRatio, assert_moments, base_state, moment_errors, run_c
 from scipy import stats
 
 from albedo_model.params import Block, SHLight
-from proposals.base import mixture
+from proposals.base import ProposalState, mixture
 from proposals.light import (
     SHBandMixer,
     SHColorShift,
@@ -40,11 +40,11 @@ def _start(k=9, seed=0):
 
 def test_intensity_scales_everything_with_ratio_27_log_s():
     p = _start()
-    move = SHIntensity(0.1)(np.random.default_rng(1), p)
+    move = SHIntensity(0.1)(np.random.default_rng(1), ProposalState(p))
     s = _L(move.params) / _L(p)
     np.testing.assert_allclose(s, s[0, 0], rtol=1e-12)
     assert move.log_q_ratio == pytest.approx(27 * np.log(s[0, 0]), rel=1e-12)
-    zero = SHIntensity(0.1)(np.random.default_rng(1), _state(np.zeros((9, 3))))
+    zero = SHIntensity(0.1)(np.random.default_rng(1), ProposalState(_state(np.zeros((9, 3)))))
     assert zero.touched == Block.NONE
 
 
@@ -69,7 +69,7 @@ def test_band_mixer_alone_samples_each_band_radius():
 
 def test_band_mixer_leaves_a_zero_band_alone():
     L = SHLight.frontal().coefficients  # band 2 is zero
-    move = SHBandMixer(0.1)(np.random.default_rng(4), _state(L))
+    move = SHBandMixer(0.1)(np.random.default_rng(4), ProposalState(_state(L)))
     assert not np.any(_L(move.params)[4:])
     s0, s1 = _L(move.params)[0, 0] / L[0, 0], _L(move.params)[2, 0] / L[2, 0]
     assert move.log_q_ratio == pytest.approx(3 * np.log(s0) + 9 * np.log(s1), rel=1e-12)
@@ -92,7 +92,7 @@ def test_energy_preserving_perturbation_is_symmetric_on_the_sphere():
     mu = np.random.default_rng(6).normal(size=(9, 3))
     mu *= 2.0 / np.linalg.norm(mu)
     prop = SHPerturbation(0.4, fix_energy=True)
-    move = prop(np.random.default_rng(7), p)
+    move = prop(np.random.default_rng(7), ProposalState(p))
     assert move.log_q_ratio == 0.0
     assert np.linalg.norm(_L(move.params)) == pytest.approx(R, rel=1e-12)
     log_p = lambda q: -0.5 * float(np.sum((_L(q) - mu) ** 2))  # noqa: E731
@@ -131,7 +131,7 @@ def test_colour_shift_move_and_ratio():
     sigma = 0.3
     rng = np.random.default_rng(11)
     delta = np.random.default_rng(11).normal(0, sigma, 3)
-    move = SHColorShift(sigma)(rng, p)
+    move = SHColorShift(sigma)(rng, ProposalState(p))
     L, L_new = _L(p), _L(move.params)
     c = np.linalg.norm(L) / np.linalg.norm(L + delta)
     np.testing.assert_allclose(L_new, c * (L + delta), rtol=1e-12)
@@ -164,7 +164,7 @@ def test_colour_shift_alone_samples_its_leaf():
 
 def test_spatial_adds_grey_per_coefficient():
     p = _start(seed=14)
-    move = SHSpatial(0.1)(np.random.default_rng(15), p)
+    move = SHSpatial(0.1)(np.random.default_rng(15), ProposalState(p))
     diff = _L(move.params) - _L(p)
     np.testing.assert_allclose(diff, diff[:, :1].repeat(3, 1), atol=1e-15)
     assert move.log_q_ratio == 0.0 and np.all(diff != 0)
@@ -206,6 +206,6 @@ def test_specular_exponent_chain_matches_lognormal():
     assert_moments(samples, np.log(15.0), 0.4)
     wrong, _ = run_chain(DropRatio(prop), log_p, base_state(), feat, N // 2, seed=18)
     assert moment_errors(wrong, np.log(15.0), 0.4).max() > 0.15
-    move = prop(np.random.default_rng(0), base_state())
+    move = prop(np.random.default_rng(0), ProposalState(base_state()))
     assert move.touched == Block.SPECULAR_EXPONENT
     assert move.log_q_ratio == pytest.approx(np.log(move.params.specular_exponent / 20.0))

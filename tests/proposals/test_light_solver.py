@@ -10,6 +10,7 @@ from albedo_model.errors import InputError
 from albedo_model.params import Block, SHLight
 from albedo_model.sh import LAMBERT_FACTORS, sh_basis, sh_irradiance
 from proposals.light_solver import SHLightSolver, solve_sh_light
+from proposals.base import ProposalState
 
 
 def _scene(p, seed=0, noise=0.0):
@@ -56,15 +57,15 @@ def test_proposal_ratio_is_the_gaussian_independence_ratio():
     prop = SHLightSolver(lambda p: (normals, albedo, target), sigma=0.02, ridge=1e-4)
     p = base_state()
     mu = solve_sh_light(normals, albedo, target, ridge=1e-4)
-    move = prop(np.random.default_rng(3), p)
+    move = prop(np.random.default_rng(3), ProposalState(p))
     L, L_new = p.environment_map.coefficients, move.params.environment_map.coefficients
     expected = (np.sum((L_new - mu) ** 2) - np.sum((L - mu) ** 2)) / (2 * 0.02**2)
     assert move.log_q_ratio == pytest.approx(expected, rel=1e-12)
     assert move.touched == Block.LIGHT == prop.touches
-    empty = SHLightSolver(lambda p: (np.zeros((0, 3)),) * 3)(np.random.default_rng(0), p)
+    empty = SHLightSolver(lambda p: (np.zeros((0, 3)),) * 3)(np.random.default_rng(0), ProposalState(p))
     assert empty.touched == Block.NONE and empty.params is p
     with pytest.raises(InputError, match=r"\(9, 3\)"):
-        prop(np.random.default_rng(0), p._replace(environment_map=SHLight(np.ones((4, 3)))))
+        prop(np.random.default_rng(0), ProposalState(p._replace(environment_map=SHLight(np.ones((4, 3))))))
 
 
 def test_independence_chain_samples_a_gaussian_light_posterior():

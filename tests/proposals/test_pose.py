@@ -22,6 +22,7 @@ from proposals.base import mixture
 from proposals.coefficients import CoefficientWalk
 from proposals.pose import Distance, FocalScaling, ImageCentered, Rotation, Translation
 from proposals.schedule import pose_proposal
+from proposals.base import ProposalState
 
 N = 12_000
 
@@ -121,7 +122,7 @@ def test_distance_and_focal_jointly_sample_the_product_target():
 def test_distance_rejects_a_state_behind_the_bound():
     p = base_state()._replace(pose=base_state().pose._replace(translation=(0.0, 0.0, -0.5)))
     with pytest.raises(InputError, match="in front of the camera"):
-        Distance(5.0)(np.random.default_rng(0), p)
+        Distance(5.0)(np.random.default_rng(0), ProposalState(p))
 
 
 def _anchor(p):
@@ -143,7 +144,7 @@ def test_image_centered_keeps_the_anchor_pixel():
         assert prop.touches == prop.inner.touches | Block.CAMERA
         for _ in range(40):
             p = random_state(rng)
-            move = prop(rng, p)
+            move = prop(rng, ProposalState(p))
             assert np.isfinite(move.log_q_ratio)
             assert changed_blocks(p, move.params) & Block.CAMERA
             np.testing.assert_allclose(_pixel(move.params), _pixel(p), atol=1e-8)
@@ -154,8 +155,8 @@ def test_image_centered_ratio_and_state_are_the_inner_ones():
     wrapped = ImageCentered(inner, _anchor, label="lm")
     p = random_state(np.random.default_rng(8))
     for seed in range(20):
-        a = inner(np.random.default_rng(seed), p)
-        b = wrapped(np.random.default_rng(seed), p)
+        a = inner(np.random.default_rng(seed), ProposalState(p))
+        b = wrapped(np.random.default_rng(seed), ProposalState(p))
         assert b.log_q_ratio == a.log_q_ratio and b.name == a.name + "@lm"
         assert b.params.pose == a.params.pose
         assert b.params.camera.focal_length == a.params.camera.focal_length
@@ -198,7 +199,7 @@ def test_image_centered_chain_with_a_principal_point_target():
 def test_image_centered_returns_rejection_when_anchor_unprojectable():
     p = base_state()
     bad = ImageCentered(Rotation("yaw", 0.1), lambda q: np.array([np.nan, 0.0, 0.0]))
-    move = bad(np.random.default_rng(0), p)
+    move = bad(np.random.default_rng(0), ProposalState(p))
     assert move.log_q_ratio == -np.inf
     assert move.params.camera == p.camera
 

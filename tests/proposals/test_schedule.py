@@ -7,7 +7,7 @@ import pytest
 from mh_chain import changed_blocks, random_state
 
 from albedo_model.params import Block
-from proposals.base import Mixture, leaves
+from proposals.base import Mixture, ProposalState, leaves
 from proposals.pose import ImageCentered
 from proposals.schedule import (
     CENTERING_LANDMARKS,
@@ -61,7 +61,7 @@ def test_every_proposal_changes_only_its_declared_blocks():
         for i in range(200):
             p = states[i % len(states)]
             before = _snapshot(p)
-            move = leaf(rng, p)
+            move = leaf(rng, ProposalState(p))
             changed = changed_blocks(p, move.params)
             assert changed & ~move.touched == Block.NONE, (leaf.name, changed, move.touched)
             assert move.touched & ~leaf.touches == Block.NONE, (leaf.name, move.touched)
@@ -131,7 +131,7 @@ def test_same_seed_same_moves():
     def run(seed):
         rng, p, out = np.random.default_rng(seed), random_state(np.random.default_rng(5)), []
         for _ in range(300):
-            move = prop(rng, p)
+            move = prop(rng, ProposalState(p))
             out.append(move)
             p = move.params  # accept everything: later moves depend on earlier ones
         return out

@@ -20,8 +20,10 @@ Expression
     (mouth corners up, out and back, cheeks up) and ``brow_raise``,
     orthonormalised in that order.
 
-Both use the interleaved layout ``x0 y0 z0 x1 ...`` in mm. Imports only
-:mod:`albedo_model`, :mod:`pipeline.synthetic.head.head_sdf` and :mod:`pipeline.synthetic.head.template_head`.
+Both use the interleaved layout ``x0 y0 z0 x1 ...`` in mm.
+
+This module imports only :mod:`albedo_model`, :mod:`pipeline.synthetic.head.head_sdf` and
+:mod:`pipeline.synthetic.head.template_head`.
 """
 
 from __future__ import annotations
@@ -169,7 +171,8 @@ def build_shape_model(template: TemplateHead, *, rank: int = 40, seed: int = 0) 
     PCAPart
         ``mean`` = template vertices (3n,) interleaved, mm; ``basis`` (3n, rank)
         orthonormal, every column exactly mirror-symmetric or -antisymmetric
-        (:func:`pipeline.modelling.symmetry.mirror_flat` of u is +-u); ``variance`` in mm^2, decreasing.
+        (:func:`pipeline.modelling.symmetry.mirror_flat` of u is +-u); ``variance`` in mm^2,
+        decreasing.
     """
     if rank < 1:
         raise InputError(f"shape model rank must be positive, got {rank}")

@@ -1,65 +1,29 @@
-"""Embree ray caster against the brute-force z-buffer reference, refit, double buffering."""
+"""Embree ray caster against the brute-force z-buffer reference, and its input checks.
+
+Hits, back-face culling, fast against robust traversal, threads, occlusion and
+visibility, bad input, pixel windows. Refit and double buffering:
+test_raycast_refit.py; meshes and poses: raycast_meshes.py.
+"""
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 pytest.importorskip("embreex")
-trimesh = pytest.importorskip("trimesh")
+pytest.importorskip("trimesh")
 
 from albedo_model import camera as cam  # noqa: E402
-from albedo_model.render import embree_refit, raycast  # noqa: E402
-from albedo_model.render.scene_slots import SceneSlots  # noqa: E402
+from albedo_model.render import raycast  # noqa: E402
 from albedo_model.errors import InputError  # noqa: E402
-from albedo_model.params import (  # noqa: E402
-    Camera, ImageSize, Pose, View, default_square, fit_to_image_size,
-)
+from albedo_model.params import Camera, ImageSize, Pose, View  # noqa: E402
 
+from raycast_meshes import MESHES, POSES, bumpy_sphere, icosphere, open_shell, scene  # noqa: E402
 from zbuffer_reference import render_zbuffer  # noqa: E402
 
 pytestmark = pytest.mark.embree
-
-
-def icosphere():
-    m = trimesh.creation.icosphere(3, radius=100.0)
-    return np.asarray(m.vertices), np.asarray(m.faces)
-
-
-def bumpy_sphere(subdiv=4):
-    m = trimesh.creation.icosphere(subdiv, radius=1.0)
-    v = np.asarray(m.vertices)
-    th, ph = np.arccos(np.clip(v[:, 2], -1, 1)), np.arctan2(v[:, 1], v[:, 0])
-    return v * (100 * (1 + 0.15 * np.sin(5 * th) * np.sin(4 * ph)))[:, None], np.asarray(m.faces)
-
-
-def open_shell():
-    """Front half of a bumpy ellipsoid: an open mesh like a face mask."""
-    v, f = bumpy_sphere(3)
-    keep = v[f].mean(1)[:, 2] > 0
-    v = v / 100 * np.array([80.0, 100.0, 60.0])
-    return v, f[keep]
-
-
-def scene(size, pp=(0.0, 0.0), ortho=False):
-    cam_ = fit_to_image_size(default_square(), size.width, size.height).camera
-    cam_ = cam_._replace(principal_point=pp, orthographic=ortho)
-    return cam_._replace(near=800.0) if ortho else cam_
-
-
-POSES = {
-    # slightly off-centre so that pixel rays do not run exactly along mesh edges
-    "frontal": (Pose(translation=(0.37, -0.21, -1000.0)), ImageSize(96, 96), (0.0, 0.0), False),
-    "random": (Pose(scaling=1.3, translation=(20, -30, -900), roll=0.3, yaw=0.8, pitch=-0.4),
-               ImageSize(120, 80), (0.1, -0.2), False),
-    "behind": (Pose(translation=(0, 0, -1000), yaw=2.6, pitch=0.3), ImageSize(80, 110),
-               (0.0, 0.0), False),
-    "ortho": (Pose(scaling=0.9, yaw=-1.2), ImageSize(90, 90), (0.05, 0.05), True),
-}
-MESHES = {"icosphere": icosphere, "bumpy": bumpy_sphere, "open": open_shell}
 
 
 def compare_to_zbuffer(v, f, pose, camera, size, caster=None):
@@ -163,80 +127,6 @@ def test_threads_give_identical_hits():
     np.testing.assert_array_equal(one.occluded(o, d[:1]), two.occluded(o, d[:1]))
 
 
-def deformations(v, n, seed=0):
-    rng = np.random.default_rng(seed)
-    for k in range(n):
-        yield v * (1 + 0.1 * np.sin(v / rng.uniform(20, 60, 3) + k)) + rng.normal(0, 10, 3)
-
-
-def test_refit_equals_fresh_build():
-    assert raycast.refit_check() == (True, "refit verified")
-    v, f = bumpy_sphere()
-    caster = raycast.RayCaster(v, f, update="refit")
-    assert caster.refit_supported and caster.update_method == "refit"
-    size = ImageSize(96, 96)
-    o, d = cam.camera_rays(scene(size), size, Pose(yaw=0.3, pitch=-0.2), View())
-    for vk in deformations(v, 4):
-        caster.update_vertices(vk)
-        got = caster.cast(o, d)
-        want = raycast.RayCaster(vk, f, update="rebuild").cast(o, d)
-        assert got.mask.mean() > 0.3
-        np.testing.assert_array_equal(got.prim_id, want.prim_id)
-        np.testing.assert_allclose(got.bary, want.bary, atol=1e-5)
-        np.testing.assert_allclose(got.t[got.mask], want.t[want.mask], rtol=1e-6)
-
-
-def test_refit_failure_falls_back_to_rebuild(monkeypatch, caplog):
-    v, f = icosphere()
-    size = ImageSize(64, 64)
-    o, d = cam.camera_rays(scene(size), size, Pose(), View())
-
-    def broken(*args, **kwargs):
-        raise embree_refit.RefitUnavailable("simulated layout change")
-
-    with caplog.at_level(logging.INFO, logger="albedo_model.render.raycast"):
-        monkeypatch.setattr(raycast, "prepare_refit", broken)
-        caster = raycast.RayCaster(v, f)
-    assert not caster.refit_supported and caster.update_method == "rebuild"
-    assert "simulated layout change" in caplog.text
-    monkeypatch.undo()
-
-    live = raycast.RayCaster(v, f)
-    monkeypatch.setattr(embree_refit.RefitHandle, "update", broken)
-    for c in (caster, live):
-        vk = next(deformations(v, 1))
-        c.update_vertices(vk)
-        want = raycast.RayCaster(vk, f, update="rebuild").cast(o, d)
-        np.testing.assert_array_equal(c.cast(o, d).prim_id, want.prim_id)
-    assert live.update_method == "rebuild"
-
-
-def test_scene_slots_double_buffering():
-    v, f = bumpy_sphere()
-    size = ImageSize(64, 64)
-    o, d = cam.camera_rays(scene(size), size, Pose(yaw=0.5), View())
-    slots = SceneSlots(v, f)
-    before = slots.current.cast(o, d)
-    assert slots.candidate is slots.current and not slots.pending
-    v1, v2 = deformations(v, 2, seed=4)
-    cand = slots.propose(v1)
-    assert slots.candidate is cand and cand is not slots.current and slots.pending
-    proposed = cand.cast(o, d)
-    assert (proposed.prim_id != before.prim_id).any()
-    slots.reject()
-    assert slots.candidate is slots.current and not slots.pending
-    for x, y in zip(slots.current.cast(o, d), before):
-        np.testing.assert_array_equal(x, y)  # a rejected proposal changed nothing
-    slots.propose(v2)
-    slots.accept()
-    want = raycast.RayCaster(v2, f).cast(o, d)
-    np.testing.assert_array_equal(slots.current.cast(o, d).prim_id, want.prim_id)
-    spare_before = slots._slots[1]
-    slots.propose(v1)  # reuses the spare (the old current) by refit
-    assert slots.candidate is spare_before
-    np.testing.assert_array_equal(slots.candidate.cast(o, d).prim_id, proposed.prim_id)
-
-
 def test_visible_points_front_and_back():
     v, f = icosphere()
     caster = raycast.RayCaster(v, f)
@@ -322,58 +212,6 @@ def test_camera_dependence_of_cast_is_rays_only():
     assert (in_model.prim_id == in_eye.prim_id).mean() > 0.999
     both = in_model.mask & in_eye.mask
     np.testing.assert_allclose(in_model.t[both], in_eye.t[both], rtol=1e-4)
-
-
-def _embreex_builder():
-    from embreex import mesh_construction, rtcore, rtcore_scene
-
-    device = rtcore.EmbreeDevice()
-
-    def build(v, f):
-        scene = rtcore_scene.EmbreeScene(device, robust=False)
-        mesh_construction.TriangleMesh(scene, v, f)
-        return scene, device
-
-    return build, device
-
-
-def test_refit_self_check_detects_failures(monkeypatch):
-    build, device = _embreex_builder()
-    assert embree_refit.verify_refit(build) == (True, "refit verified")
-
-    def boom(v, f):
-        raise RuntimeError("no scene")
-
-    assert embree_refit.verify_refit(boom) == (False, "RuntimeError: no scene")
-    # a refit that silently does nothing must be caught by the hit comparison
-    monkeypatch.setattr(embree_refit.RefitHandle, "update", lambda self, v: None)
-    ok, reason = embree_refit.verify_refit(build)
-    assert not ok and "differ" in reason
-
-
-def test_refit_pointer_checks_reject_wrong_objects():
-    from embreex import rtcore
-
-    build, _ = _embreex_builder()
-    v, f = icosphere()
-    scene, device = build(v.astype(np.float32), f.astype(np.int32))
-    with pytest.raises(embree_refit.RefitUnavailable, match="layout"):
-        embree_refit.prepare_refit(scene, rtcore.EmbreeDevice(), v.astype(np.float32))
-    with pytest.raises(embree_refit.RefitUnavailable):
-        embree_refit.prepare_refit(scene, device, v[::-1].astype(np.float32))
-    handle = embree_refit.prepare_refit(scene, device, v.astype(np.float32))
-    assert scene.is_committed == 1 and handle.vertices.shape == (len(v), 4)
-
-
-def test_failed_process_check_means_rebuild(monkeypatch):
-    monkeypatch.setattr(raycast, "refit_check", lambda: (False, "simulated"))
-    v, f = icosphere()
-    caster = raycast.RayCaster(v, f)
-    assert caster.update_method == "rebuild"
-    caster.update_vertices(v * 1.5)
-    o = np.array([[0, 0, 500]], np.float32)
-    d = np.array([[0, 0, -1]], np.float32)
-    assert caster.cast(o, d).t[0] == pytest.approx(350.0, abs=0.5)
 
 
 def test_raycast_is_the_only_embreex_importer():

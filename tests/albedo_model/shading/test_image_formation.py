@@ -1,78 +1,26 @@
-"""JAX shading: analytic cases, NumPy references, the naive reference, and effect specialisation."""
+"""JAX shading: analytic cases, NumPy references, the naive reference, effect specialisation.
+
+The split shader (per-pixel attributes, then shading without gathers):
+test_pixel_shading.py. Scenes and jaxpr helpers: shading_scenes.py.
+"""
 
 from __future__ import annotations
 
-import functools
-
 import jax
-import jax.extend
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
+from shading_scenes import (
+    COLOR, EFFECT_SETS, N_PIX, ROT, Scene, jaxpr_primitives, rgb_of, scene_params, used_inputs,
+)
 
 from albedo_model import sh
-from albedo_model.params import (
-    ColorTransform, DirectionalLight, SHLight, default_square,
-)
-from albedo_model.shading.interpolation import interpolate_albedo, interpolate_geometry, pixel_hits
+from albedo_model.params import ColorTransform, DirectionalLight, SHLight, default_square
 from albedo_model.shading.image_formation import (
-    PACKED_SIZE, combine_pixels, pixel_light, Effects, ShadingParams, build_shader, effects_for, encode_gamma,
-    pack_shading_params, pixel_shader_function, shade, shade_pixels, shader_function,
-    shading_params, to_hwc, unpack_shading_params,
+    Effects, build_shader, effects_for, encode_gamma, shade, shader_function, shading_params,
+    to_hwc,
 )
 from albedo_model.shading.naive import shade_naive
-
-N_PIX = 24 * 24
-
-
-class Scene:
-    """Random per-vertex data and per-pixel hits (about a third of the pixels miss)."""
-
-    def __init__(self, seed: int = 0, n: int = 90, m: int = 150, p: int = N_PIX):
-        rng = np.random.default_rng(seed)
-        normals = rng.normal(size=(n, 3))
-        self.normals = (normals / np.linalg.norm(normals, axis=1, keepdims=True)).astype(np.float32)
-        self.diffuse = rng.uniform(0.05, 0.9, (n, 3)).astype(np.float32)
-        self.specular = rng.uniform(0.0, 0.5, (n, 3)).astype(np.float32)
-        self.triangles = rng.integers(0, n, (m, 3)).astype(np.int32)
-        self.prim_id = np.where(rng.random(p) < 0.35, -1, rng.integers(0, m, p)).astype(np.int32)
-        uv = rng.random((p, 2))
-        flip = uv.sum(1) > 1
-        uv[flip] = 1 - uv[flip]
-        self.bary = uv.astype(np.float32)
-        self.ray_dirs = np.column_stack([rng.uniform(-0.3, 0.3, (p, 2)), -np.ones(p)]).astype(
-            np.float32)
-        self.shadow = rng.uniform(0.0, 1.0, p).astype(np.float32)
-
-    def args(self):
-        return [jnp.asarray(a) for a in (self.triangles, self.normals, self.diffuse, self.specular,
-                                         self.prim_id, self.bary, self.ray_dirs)]
-
-    def interp(self, attr: np.ndarray) -> np.ndarray:
-        """(P, C) float64 barycentric interpolation at every pixel (misses: triangle 0)."""
-        tri = self.triangles[np.maximum(self.prim_id, 0)]
-        u, v = self.bary[:, :1].astype(np.float64), self.bary[:, 1:].astype(np.float64)
-        a = attr.astype(np.float64)
-        return (1 - u - v) * a[tri[:, 0]] + u * a[tri[:, 1]] + v * a[tri[:, 2]]
-
-
-def rgb_of(shaded) -> np.ndarray:
-    return np.stack([np.asarray(c) for c in shaded.rgb], axis=1)
-
-
-def scene_params(light=None, directional=None, color=None, exponent=20.0, background=(0, 0, 0)):
-    p = default_square()
-    p = p._replace(environment_map=light if light is not None else SHLight.frontal(),
-                   specular_exponent=exponent)
-    if directional is not None:
-        p = p._replace(directional_light=directional)
-    if color is not None:
-        p = p._replace(color_transform=color)
-    return p
-
-
-ROT = Rotation.from_euler("xyz", [0.2, -0.4, 0.1]).as_matrix()
 
 
 def test_ambient_white_reproduces_interpolated_albedo():
@@ -183,9 +131,6 @@ def test_specular_matches_float64_reference_on_random_scene():
     np.testing.assert_allclose(out[hit], ref[hit], atol=1e-5)
 
 
-COLOR = ColorTransform(gain=(1.1, 0.9, 1.2), contrast=0.7, offset=(0.01, 0.02, 0.03))
-
-
 def uniform_albedo_args(diffuse, specular):
     p = 16
     tri, nrm, pid, bary = flat_hits(fibonacci(p))
@@ -264,18 +209,6 @@ def test_background_colour_on_misses():
     np.testing.assert_array_equal(img[0, 1], rgb_of(out)[1])
 
 
-EFFECT_SETS = [
-    Effects(),
-    Effects(sh_coefficients=4),
-    Effects(sh_coefficients=1, clamp=False),
-    Effects(specular=True),
-    Effects(directional=True),
-    Effects(sh_coefficients=0, directional=True, shadows=True, gamma=True),
-    Effects(specular=True, color_transform=True),
-    Effects(specular=True, directional=True, shadows=True, color_transform=True, gamma=True),
-]
-
-
 @pytest.mark.parametrize("effects", EFFECT_SETS, ids=str)
 def test_specialised_equals_naive(effects):
     s = Scene(8)
@@ -287,21 +220,6 @@ def test_specialised_equals_naive(effects):
     slow = shade_naive(effects, *s.args(), sp, shadow)
     np.testing.assert_array_equal(np.asarray(fast.mask), np.asarray(slow.mask))
     np.testing.assert_allclose(rgb_of(fast), rgb_of(slow), atol=1e-5)
-
-
-def _primitives(jaxpr) -> list[str]:
-    names = []
-    for eqn in jaxpr.eqns:
-        names.append(eqn.primitive.name)
-        for sub in jax.extend.core.jaxprs_in_params(eqn.params):
-            names += _primitives(sub)
-    return names
-
-
-def _used_inputs(closed, n_leaves: int) -> set[int]:
-    jaxpr = closed.jaxpr
-    used = {id(v) for e in jaxpr.eqns for v in e.invars} | {id(v) for v in jaxpr.outvars}
-    return {i for i, v in enumerate(jaxpr.invars[:n_leaves]) if id(v) in used}
 
 
 # Flattened argument positions: 0 triangles, 1 normals, 2 diffuse, 3 specular, 4 prim_id,
@@ -316,7 +234,7 @@ def _trace(effects):
     s = Scene(10)
     sp = shading_params(scene_params(), ROT)
     closed = jax.make_jaxpr(shader_function(effects))(*s.args(), sp, jnp.asarray(s.shadow))
-    return _primitives(closed.jaxpr), _used_inputs(closed, 20)
+    return jaxpr_primitives(closed.jaxpr), used_inputs(closed, 20)
 
 
 def test_switched_off_effects_are_not_traced():
@@ -367,138 +285,3 @@ def test_shader_cache_and_validation():
         shader_function(Effects(sh_coefficients=0, specular=True))
     with pytest.raises(ValueError):
         shader_function(Effects(sh_coefficients=10))
-
-
-# -- the split shader: per-pixel attributes, then shading without gathers ------------------
-
-def _split_shade(effects, s: Scene, sp, shadow=None):
-    tri, nrm, dif, spec, pid, bary, dirs = s.args()
-    hits = pixel_hits(tri, pid, bary)
-    geometry = interpolate_geometry(effects, hits, nrm, dirs, sp.rotation)
-    albedo = interpolate_albedo(effects, hits, dif, spec)
-    return hits, geometry, albedo, shade_pixels(effects, geometry, albedo, sp, shadow)
-
-
-def test_interpolated_pixel_attributes_match_numpy():
-    s = Scene(11)
-    sp = shading_params(scene_params(), ROT)
-    hits, geometry, albedo, _ = _split_shade(Effects(specular=True), s, sp)
-    hit = s.prim_id >= 0
-    np.testing.assert_array_equal(np.asarray(hits.mask), hit)
-    n = s.interp(s.normals) @ ROT.T
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    got = np.stack([np.asarray(c) for c in geometry.normal], 1)
-    np.testing.assert_allclose(got[hit], n[hit], atol=1e-6)
-    v = -s.ray_dirs / np.linalg.norm(s.ray_dirs, axis=1, keepdims=True)
-    np.testing.assert_allclose(np.stack([np.asarray(c) for c in geometry.view], 1), v, atol=1e-6)
-    for got, want in ((albedo.diffuse, s.diffuse), (albedo.specular, s.specular)):
-        np.testing.assert_allclose(np.stack([np.asarray(c) for c in got], 1)[hit],
-                                   s.interp(want)[hit], atol=1e-6)
-    # attributes an effect set does not read are not computed
-    _, geometry, albedo, _ = _split_shade(Effects(), s, sp)
-    assert geometry.view is None and albedo.specular is None
-
-
-@pytest.mark.parametrize("effects", EFFECT_SETS, ids=str)
-def test_shade_pixels_equals_full_shader(effects):
-    s = Scene(12)
-    rng = np.random.default_rng(13)
-    light = SHLight(rng.normal(0, 0.25, (9, 3)) + SHLight.frontal().coefficients)
-    dl = DirectionalLight((0.1, 0.1, 0.2), (0.5, 0.4, 0.3), (0.3, 0.2, 1.0), (0.2, 0.1, 0.1), 12.)
-    sp = shading_params(scene_params(light, dl, COLOR, exponent=10.0), ROT, background=(0, 0.5, 1))
-    shadow = jnp.asarray(s.shadow)
-    *_, split = _split_shade(effects, s, sp, shadow)
-    full = shade(effects, *s.args(), sp, shadow)
-    np.testing.assert_array_equal(np.asarray(split.mask), np.asarray(full.mask))
-    np.testing.assert_allclose(rgb_of(split), rgb_of(full), atol=1e-6)
-
-
-def test_packed_shading_params_round_trip():
-    dl = DirectionalLight((0.1, 0.2, 0.3), (0.5, 0.4, 0.3), (0.0, 0.6, 0.8), (0.05, 0.1, 0.0), 7.)
-    p = scene_params(SHLight(np.arange(12.0).reshape(4, 3)), dl, COLOR, exponent=13.0)
-    packed = pack_shading_params(p, ROT, background=(0.1, 0.2, 0.3))
-    assert packed.shape == (PACKED_SIZE,) and packed.dtype == np.float32
-    want = {
-        "rotation": ROT, "sh": np.vstack([np.arange(12.0).reshape(4, 3), np.zeros((5, 3))]),
-        "specular_exponent": 13.0, "light_direction": dl.direction, "light_ambient": dl.ambient,
-        "light_diffuse": dl.diffuse, "light_specular": dl.specular, "light_shininess": 7.0,
-        "color_gain": COLOR.gain, "color_contrast": COLOR.contrast, "color_offset": COLOR.offset,
-        "background": (0.1, 0.2, 0.3),
-    }
-    assert set(want) == set(ShadingParams._fields)
-    unpacked = jax.jit(unpack_shading_params)(packed)
-    for got in (unpacked, shading_params(p, ROT, background=(0.1, 0.2, 0.3))):
-        for name, value in want.items():
-            np.testing.assert_array_equal(np.asarray(getattr(got, name)),
-                                          np.asarray(value, np.float32), err_msg=name)
-
-
-def _trace_pixels(effects):
-    s = Scene(14)
-    sp = shading_params(scene_params(), ROT)
-    tri, nrm, dif, spec, pid, bary, dirs = s.args()
-    hits = pixel_hits(tri, pid, bary)
-    full = Effects(specular=True, directional=True, directional_specular_map=True)
-    geometry = interpolate_geometry(full, hits, nrm, dirs, sp.rotation)
-    albedo = interpolate_albedo(full, hits, dif, spec)
-    args = (geometry, albedo, sp, jnp.asarray(s.shadow))
-    closed = jax.make_jaxpr(pixel_shader_function(effects))(*args)
-    leaves, _ = jax.tree_util.tree_flatten(args)
-    names = (["mask"] + [f"normal{i}" for i in range(3)] + [f"view{i}" for i in range(3)]
-             + [f"diffuse{i}" for i in range(3)] + [f"specular{i}" for i in range(3)]
-             + list(ShadingParams._fields) + ["shadow"])
-    assert len(names) == len(leaves)
-    used = _used_inputs(closed, len(leaves))
-    return _primitives(closed.jaxpr), {names[i] for i in used}
-
-
-def test_pixel_shader_has_no_gathers_and_skips_switched_off_effects():
-    prims_off, used_off = _trace_pixels(Effects())
-    prims_spec, used_spec = _trace_pixels(Effects(specular=True))
-    prims_all, used_all = _trace_pixels(Effects(specular=True, directional=True, shadows=True,
-                                                color_transform=True, gamma=True))
-    # a light step is a pure per-pixel evaluation: nothing is gathered
-    for prims in (prims_off, prims_spec, prims_all):
-        assert "gather" not in prims and "scatter-add" not in prims
-    assert prims_off.count("exp") == 0 and prims_off.count("log") == 0
-    assert prims_spec.count("exp") >= 1 and prims_spec.count("log") >= 1
-    assert not used_off & {"view0", "specular0", "specular_exponent", "shadow", "light_direction",
-                           "color_gain", "rotation"}
-    assert {"view0", "specular0", "specular_exponent"} <= used_spec
-    assert not used_spec & {"light_direction", "shadow", "color_gain"}
-    assert {"shadow", "light_direction", "light_shininess", "color_gain",
-            "color_offset"} <= used_all
-    assert prims_all.count("log") > prims_spec.count("log")
-
-
-def test_light_transport_times_albedo_is_the_image():
-    """shade_pixels = combine(pixel_light(geometry), albedo), and the light reads no albedo."""
-    s = Scene(15)
-    rng = np.random.default_rng(16)
-    light = SHLight(rng.normal(0, 0.25, (9, 3)) + SHLight.frontal().coefficients)
-    dl = DirectionalLight((0.1, 0.1, 0.2), (0.5, 0.4, 0.3), (0.3, 0.2, 1.0), (0.2, 0.1, 0.1), 12.)
-    sp = shading_params(scene_params(light, dl, COLOR, exponent=10.0), ROT)
-    shadow = jnp.asarray(s.shadow)
-    for eff in (Effects(), Effects(specular=True, color_transform=True),
-                Effects(specular=True, directional=True, shadows=True, gamma=True),
-                Effects(directional=True, directional_specular_map=True)):
-        _, geometry, albedo, full = _split_shade(eff, s, sp, shadow)
-        transport = pixel_light(eff, geometry, sp, shadow)
-        assert (transport.specular is None) == (not (eff.specular or eff.directional_specular_map))
-        assert (transport.constant is None) == (not eff.directional or eff.directional_specular_map)
-        out = combine_pixels(eff, transport, albedo, geometry.mask, sp)
-        np.testing.assert_allclose(rgb_of(out), rgb_of(full), atol=1e-6)
-        # linear in the albedo: doubling it (without clamp or transform) doubles D + S
-        if not (eff.color_transform or eff.gamma or eff.directional):
-            twice = albedo._replace(diffuse=tuple(2 * c for c in albedo.diffuse),
-                                    specular=None if albedo.specular is None
-                                    else tuple(2 * c for c in albedo.specular))
-            lin = eff._replace(clamp=False)
-            a = rgb_of(combine_pixels(lin, transport, albedo, geometry.mask, sp))
-            b = rgb_of(combine_pixels(lin, transport, twice, geometry.mask, sp))
-            hit = s.prim_id >= 0
-            np.testing.assert_allclose(b[hit], 2 * a[hit], rtol=1e-6, atol=1e-7)
-    closed = jax.make_jaxpr(functools.partial(pixel_light, Effects(specular=True)))(
-        geometry, sp, shadow)
-    prims = _primitives(closed.jaxpr)
-    assert "gather" not in prims and prims.count("exp") >= 1

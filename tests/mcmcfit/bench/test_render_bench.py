@@ -37,7 +37,7 @@ def test_bench_render_smoke(capsys):
 
 
 def test_against_notes_scales_the_reference_by_the_embree_yardstick():
-    from mcmcfit.bench.render_bench import BenchResult, BenchRow, format_table
+    from mcmcfit.bench.render_report import BenchResult, BenchRow, format_table
 
     rows = [BenchRow(250, "shape", 20.0, 19.0, 200.0, 0.6, 21.0, 22.0, 210.0),
             BenchRow(250, "light", 1.0, 0.8, 200.0, 0.6, 2.0, 2.5, 210.0)]

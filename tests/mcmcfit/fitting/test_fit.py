@@ -10,7 +10,7 @@ import pytest
 from face_factory import scene, small_face_model, synthetic_target
 
 from albedo_model.errors import InputError
-from albedo_model.params import ColorTransform, SHLight
+from albedo_model.params import Block, ColorTransform, SHLight
 from albedo_model.render.renderer import Renderer
 from mcmcfit.sampling.chain import read_chains_h5
 from mcmcfit.targets.face import FaceTarget
@@ -19,6 +19,7 @@ from mcmcfit.fitting.config import FitConfig
 from mcmcfit.targets.image import ImageLikelihood, linearise, prepare_image_target
 from mcmcfit.proposal_data.light import RenderLightData, invert_color_transform
 from mcmcfit.targets.priors import LogPrior, PriorConfig
+from proposals.base import ProposalState
 from proposals.light_solver import solve_sh_light
 
 
@@ -107,16 +108,25 @@ def test_light_data_lets_the_solver_recover_the_light(small_model, ct):
     image, _ = synthetic_target(small_model, params)
     renderer = Renderer(small_model, specular=False, threads=1)
     target = FaceTarget(renderer, None, None, LogPrior())
-    target.init_render(params)
-    data = RenderLightData(target, renderer, linearise(image), n_points=300, seed=0)
-    normals, albedo, colours = data(params)
+    state = ProposalState(params, target.init_render(params))
+    data = RenderLightData(renderer, linearise(image), n_points=300, seed=0)
+    normals, albedo, colours = data(state)
     assert normals.shape == (300, 3) and np.allclose(np.linalg.norm(normals, axis=1), 1.0)
     solved = solve_sh_light(normals, albedo, colours, ridge=1e-7)
     assert np.abs(solved - light).max() < 0.02
-    assert data(params) is data(params)  # cached while the state is unchanged
-    other = params._replace(pose=params.pose._replace(yaw=0.1))
-    with pytest.raises(InputError):
-        data(other)
+    assert data(state) is data(state)  # kept while the state's version stamps are
+    # a light move keeps them (the data do not read the light); a pose move does not
+    lit = params._replace(environment_map=SHLight(light * 0.9))
+    assert data(ProposalState(lit, renderer.update(state.render_state, lit, Block.LIGHT))) \
+        is data(state)
+    turned = params._replace(pose=params.pose._replace(yaw=0.1))
+    moved = ProposalState(turned, renderer.update(state.render_state, turned, Block.POSE))
+    assert data(moved) is not data(state)
+    # stale data are impossible: a render of other parameters, or none, is refused
+    with pytest.raises(InputError, match="other parameters"):
+        data(ProposalState(turned, state.render_state))
+    with pytest.raises(InputError, match="image stage"):
+        data(ProposalState(params))
 
 
 @pytest.mark.parametrize("kind", ["independent", "collective", "trimmed"])

@@ -84,7 +84,7 @@ def test_posterior_npz_matches_the_chains(result_folder, small_model):
     assert post["visible"].shape == (n,) and post["visible"].dtype == bool
     # recompute from the samples stored in chain.h5 (an independent path through the file)
     chains, layout, _ = read_chains_h5(out / "chain.h5")
-    cols = layout.slice("color")
+    cols = layout.slice("albedo")
     pooled = np.concatenate([c.stage2.samples[int(CFG.burn_fraction * c.stage2.samples.shape[0]):
                                               , cols] for c in chains])
     ref = albedo_posterior(small_model.diffuse, pooled)

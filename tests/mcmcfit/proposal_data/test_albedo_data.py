@@ -7,6 +7,7 @@ import pytest
 
 from albedo_model.params import Block, MoMoCoefficients, SHLight, default_square
 from proposals.albedo_solver import AlbedoConditional, LightAlbedoExchange, albedo_system
+from proposals.base import ProposalState
 
 SIGMA = 0.05
 
@@ -57,7 +58,7 @@ def test_conditional_move_is_a_gibbs_draw_on_a_linear_model():
     k = system.jac.shape[2]
     c = rng.normal(0, 1, k)
     for _ in range(5):
-        mv = prop(rng, _params(k, c))
+        mv = prop(rng, ProposalState(_params(k, c)))
         assert mv.joint and mv.touched == Block.ALBEDO
         c_new = np.asarray(mv.params.momo.albedo)
         log_alpha = _log_target(system, c_new) - _log_target(system, c) + mv.log_q_ratio
@@ -74,7 +75,7 @@ def test_exchange_ratio_is_exact_on_a_linear_model():
     k = base.jac.shape[2]
     prop = LightAlbedoExchange(lambda p: base, log_sigma=0.1, sigma=SIGMA)
     c = rng.normal(0, 1, k)
-    mv = prop(np.random.default_rng(5), _params(k, c))
+    mv = prop(np.random.default_rng(5), ProposalState(_params(k, c)))
     assert mv.joint and mv.touched == Block.ALBEDO | Block.LIGHT
     s = float(mv.params.environment_map.coefficients[0, 0] / SHLight.frontal().coefficients[0, 0])
     c_new = np.asarray(mv.params.momo.albedo)

@@ -17,7 +17,9 @@ from mcmcfit.fitting.fit import fit
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.targets.landmarks import LandmarkGeometry
 from mcmcfit.sampling.param_vector import ParamLayout
-from mcmcfit.sampling.kernel import REJECTED_IMAGE, REJECTED_LANDMARKS, REJECTED_PRIOR, init, run, step
+from mcmcfit.sampling.kernel import (
+    IDENTITY, REJECTED_IMAGE, REJECTED_LANDMARKS, REJECTED_PRIOR, init, run, step,
+)
 from proposals.base import mixture
 from proposals.pose import FocalScaling, Rotation
 
@@ -72,8 +74,8 @@ class DropRatio:
     def __init__(self, inner):
         self.inner, self.name, self.touches = inner, inner.name, inner.touches
 
-    def __call__(self, rng, params):
-        return self.inner(rng, params)._replace(log_q_ratio=0.0)
+    def __call__(self, rng, state):
+        return self.inner(rng, state)._replace(log_q_ratio=0.0)
 
 
 def _toy_chain(proposal, n=30000, image=True, seed=0):
@@ -137,14 +139,16 @@ def test_identity_moves_and_minus_infinity_states():
     class Still:
         name, touches = "still", Block.POSE
 
-        def __call__(self, rng, params):
+        def __call__(self, rng, state):
             from proposals.base import no_move
-            return no_move(params, self.name)
+            return no_move(state.params, self.name)
 
     target = ToyTarget()
     s0 = init(fit_to_image_size(default_square(), 8, 8), target)
     s1, info = step(np.random.default_rng(0), s0, target, Still())
-    assert s1 is s0 and info.accepted and target.renders == 0
+    # an identity move is neither accepted nor rejected, renders nothing, draws no uniform
+    assert s1 is s0 and not info.accepted and info.rejected_by == IDENTITY
+    assert target.renders == 0
     # from a state whose image factor is -inf, a move to another -inf state is accepted
     stuck = s0._replace(log_lik_img=-math.inf)
     target.log_lik_image = lambda rs: -math.inf

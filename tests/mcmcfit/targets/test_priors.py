@@ -48,9 +48,9 @@ CASES = {
                      np.geomspace(1e-3, 1e4, 4001)),
     "principal_point_x": (lambda x: BASE._replace(camera=BASE.camera._replace(
         principal_point=(x, 0.0))), np.linspace(-5, 5, 4001)),
-    "color_contrast": (_color("contrast"), np.linspace(-2, 4, 4001)),
-    "color_offset": (_color("offset"), np.linspace(-1, 1, 4001)),
-    "color_gain": (_color("gain"), np.geomspace(1e-4, 1e3, 4001)),
+    "color_transform_contrast": (_color("contrast"), np.linspace(-2, 4, 4001)),
+    "color_transform_offset": (_color("offset"), np.linspace(-1, 1, 4001)),
+    "color_transform_gain": (_color("gain"), np.geomspace(1e-4, 1e3, 4001)),
     "specular_exponent": (lambda x: BASE._replace(specular_exponent=x),
                           np.geomspace(1e-2, 1e5, 4001)),
     "shape": (lambda x: BASE._replace(momo=BASE.momo._replace(shape=np.array([0.0, x, 0.0]))),
@@ -67,7 +67,7 @@ def test_factor_integrates_to_one(factor):
     rest = PRIOR.terms(make(grid[len(grid) // 2]))[factor] - PRIOR.terms(make(grid[0]))[factor]
     assert np.isfinite(rest)
     # the other coordinates of a multi-coordinate factor contribute a constant density
-    const = {"color_offset": 2, "color_gain": 2, "shape": 2, "light": 26}.get(factor, 0)
+    const = {"color_transform_offset": 2, "color_transform_gain": 2, "shape": 2, "light": 26}.get(factor, 0)
     if const:
         other = PRIOR.terms(make(grid[len(grid) // 2]))[factor]
         # density of the moved coordinate alone = factor minus the others (evaluated at x = mode)
@@ -79,10 +79,10 @@ def _one_d_at_mode(factor, make, grid):
     """Log density of the moved coordinate alone at the middle grid point (analytic)."""
     c = PriorConfig()
     x = grid[len(grid) // 2]
-    if factor == "color_offset":
+    if factor == "color_transform_offset":
         s = c.offset_sigma
         return -0.5 * math.log(2 * math.pi) - math.log(s) - 0.5 * (x / s) ** 2
-    if factor == "color_gain":
+    if factor == "color_transform_gain":
         s = c.gain_log_sigma
         return -0.5 * math.log(2 * math.pi) - math.log(s) - 0.5 * (math.log(x) / s) ** 2 - math.log(x)
     if factor == "shape":

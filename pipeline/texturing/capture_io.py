@@ -3,10 +3,12 @@
 Meshes: PLY/OBJ/OFF/STL through trimesh (vertex order kept, no merging), or a
 MATLAB file holding ``V`` (n x 3) and 1-based ``F`` (m x 3), as the AlbedoMM
 sample's ``FV.mat`` (v5 files through scipy, v7.3 files through h5py).
-Photographs keep their 8- or 16-bit integer pixels (no float copy of a
-10-megapixel image); several are decoded in parallel threads.
+View photographs are read by :func:`albedo_model.io.image_io.read_image_pixels`
+(8- or 16-bit integer pixels kept, no float copy of a 10-megapixel image),
+several decoded in parallel threads.
 
-Imports only :mod:`albedo_model.errors`.
+This module imports only :mod:`albedo_model.errors` and
+:mod:`albedo_model.io.image_io`.
 """
 
 from __future__ import annotations
@@ -19,8 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from albedo_model.errors import FormatError, InputError
+from albedo_model.io.image_io import read_image_pixels
 
-__all__ = ["load_mesh", "load_view_image", "load_view_images"]
+__all__ = ["load_mesh", "load_view_images"]
 
 
 def _mat_arrays(p: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -91,32 +94,30 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     return v, f.astype(np.int32)
 
 
-def load_view_image(path: str | os.PathLike) -> np.ndarray:
-    """Read a photograph as (H, W, 3) uint8 or uint16 (float for float files), RGB.
-
-    Grey images are replicated to three channels, alpha is dropped.
-    """
-    import imageio.v3 as iio
-
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: file not found")
-    try:
-        a = np.asarray(iio.imread(p))
-    except Exception as exc:  # imageio raises many types for corrupt files
-        raise FormatError(p, f"not a readable image ({exc.__class__.__name__})") from None
-    if a.dtype not in (np.uint8, np.uint16) and a.dtype.kind != "f":
-        raise FormatError(p, f"unsupported pixel type {a.dtype}")
-    if a.ndim == 2:
-        a = np.repeat(a[..., None], 3, axis=2)
-    if a.ndim != 3 or a.shape[2] not in (3, 4) or min(a.shape[:2]) < 1:
-        raise FormatError(p, f"unsupported image shape {a.shape}")
-    return a[..., :3] if a.shape[2] == 4 else a
-
-
 def load_view_images(paths: Sequence[str | os.PathLike], threads: int = 2) -> list[np.ndarray]:
-    """:func:`load_view_image` for several files, decoded in ``threads`` threads."""
+    """Read view photographs, decoded in ``threads`` threads.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The photographs, in view order.
+    threads : int
+        Decoding threads; 1 (or a single path) reads them one after the other.
+
+    Returns
+    -------
+    list of (H, W, 3) uint8, uint16 or float arrays
+        One per path, in order, as :func:`albedo_model.io.image_io.read_image_pixels`
+        returns them (stored pixel type kept; grey replicated, alpha dropped).
+
+    Raises
+    ------
+    InputError
+        A file does not exist.
+    FormatError
+        A file is not a readable image, or has an unsupported pixel type or shape.
+    """
     if threads <= 1 or len(paths) <= 1:
-        return [load_view_image(p) for p in paths]
+        return [read_image_pixels(p) for p in paths]
     with ThreadPoolExecutor(max_workers=threads) as pool:
-        return list(pool.map(load_view_image, paths))
+        return list(pool.map(read_image_pixels, paths))

@@ -1,0 +1,82 @@
+"""--check-cache: every cached product equals a fresh computation over every move kind, and a
+dependency removed from the one cache table is caught."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from face_factory import scene, small_face_model, synthetic_target
+
+from albedo_model.params import Block
+from albedo_model.render.cache_table import ATOMIC_BLOCKS, STAGE_DEPS
+from mcmcfit.fitting.cache_check import CacheMismatchError
+from mcmcfit.fitting.config import FitConfig
+from mcmcfit.fitting.fit import fit
+from mcmcfit.sampling.kernel import ACCEPTED, REJECTION_STAGES
+
+pytestmark = pytest.mark.embree
+
+CONFIG = FitConfig(steps=300, landmark_steps=100, thin=5, sigma_lm=2.0, check_cache=True)
+
+
+@pytest.fixture(scope="module")
+def case():
+    model = small_face_model()
+    truth = scene(64, 64, yaw=0.25, pitch=-0.1)
+    image, clicks = synthetic_target(model, truth)
+    return model, image, clicks
+
+
+def test_check_cache_passes_over_every_move_kind(case):
+    model, image, clicks = case
+    res = fit(image, clicks, model, config=CONFIG, seed=11)
+    rec = res.records(2)[0]
+    # every kind of move of the image stage was proposed, and moves touching every
+    # block were accepted (so each cached stage was rebuilt and checked at least once)
+    kinds = set(res.acceptance)
+    for kind in ("yaw", "pitch", "roll", "distance", "focal", "translation", "shape",
+                 "expression", "albedo", "albedo-caricature", "albedo-conditional",
+                 "light-albedo", "colour", "sh-spatial", "sh-bands", "sh-intensity",
+                 "sh-perturb", "sh-colour", "sh-solver", "specular-exponent"):
+        assert any(k.startswith(kind) for k in kinds), (kind, sorted(kinds))
+    names = rec.proposal_names
+    touched = Block.NONE
+    for i in np.flatnonzero(rec.rejected_by == ACCEPTED):
+        name = names[rec.proposal[i]]
+        touched |= next(b for prefix, b in _PREFIX_BLOCKS if name.startswith(prefix))
+    assert touched == Block.ALL, touched
+    # the unchecked fit takes exactly the same path
+    plain = fit(image, clicks, model, config=CONFIG.replace(check_cache=False), seed=11)
+    np.testing.assert_array_equal(plain.records(2)[0].log_lik_img, rec.log_lik_img)
+    assert len(REJECTION_STAGES) == 6
+
+
+_PREFIX_BLOCKS = (
+    ("yaw", Block.POSE | Block.CAMERA), ("pitch", Block.POSE | Block.CAMERA),
+    ("roll", Block.POSE | Block.CAMERA), ("distance", Block.POSE | Block.CAMERA),
+    ("translation", Block.POSE), ("focal", Block.CAMERA),
+    ("shape", Block.SHAPE), ("expression", Block.EXPRESSION),
+    ("light-albedo", Block.LIGHT | Block.ALBEDO), ("albedo", Block.ALBEDO),
+    ("colour", Block.COLOR_TRANSFORM), ("sh-", Block.LIGHT),
+    ("specular-exponent", Block.SPECULAR_EXPONENT),
+)
+
+
+@pytest.mark.parametrize("stage,block", [
+    ("geometry", Block.EXPRESSION), ("raycast", Block.SHAPE), ("albedo", Block.ALBEDO),
+    ("light", Block.LIGHT), ("shading", Block.SPECULAR_EXPONENT),
+    ("landmarks", Block.CAMERA), ("albedo_system", Block.COLOR_TRANSFORM),
+    ("light_data", Block.ALBEDO),
+])
+def test_a_dependency_removed_from_the_table_is_caught(case, monkeypatch, stage, block):
+    model, image, clicks = case
+    assert STAGE_DEPS[stage] & block
+    monkeypatch.setitem(STAGE_DEPS, stage, STAGE_DEPS[stage] & ~block)
+    with pytest.raises(CacheMismatchError, match="differs from a fresh computation") as err:
+        fit(image, clicks, model, config=CONFIG, seed=11)
+    assert "cached" in str(err.value) and "step" in str(err.value)
+
+
+def test_the_table_names_only_blocks():
+    for stage, deps in STAGE_DEPS.items():
+        assert deps and all(b in Block.ALL for b in ATOMIC_BLOCKS if deps & b), stage
