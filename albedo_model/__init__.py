@@ -3,6 +3,9 @@
 PCA parts, the morphable model, scene parameters, file formats (``io``), the
 Embree ray caster and the JAX shading. This is the lowest package: it imports
 nothing from ``pipeline``, ``proposals`` or ``mcmcfit``.
+
+This module imports :mod:`albedo_model.errors`, :mod:`albedo_model.model` and
+:mod:`albedo_model.pca`.
 """
 
 from albedo_model.errors import AlbedoModelError, FormatError, InputError

@@ -6,7 +6,7 @@ camera looks down -z, the principal point is in NDC units, SH coefficients are
 in scalismo's internal order (1, y, z, x, xy, yz, 3z^2-1, xz, x^2-y^2) and form
 a radiance environment map (Lambert factors are applied when shading).
 
-This module imports nothing from the project but :mod:`albedo_model.errors`.
+This module imports nothing from the project.
 """
 
 from __future__ import annotations
@@ -88,6 +88,7 @@ class SHLight(NamedTuple):
 
     @classmethod
     def empty(cls) -> SHLight:
+        """Return the empty light (K = 0 coefficients: no SH illumination)."""
         return cls(np.zeros((0, 3)))
 
     @classmethod
@@ -99,7 +100,7 @@ class SHLight(NamedTuple):
 
     @classmethod
     def frontal(cls, ambient: float = 0.8, diffuse: float = 0.2) -> SHLight:
-        """scalismo's ``SH.frontal``: shading ``ambient + diffuse * n_z`` (bands 0-1).
+        """Return scalismo's ``SH.frontal``: shading ``ambient + diffuse * n_z`` (bands 0-1).
 
         L0 = ambient / (pi N0) and L_z = diffuse / (2 pi / 3 N1), so that with the
         Lambert factors the shading of a normal n is exactly ``ambient + diffuse n_z``
@@ -112,6 +113,7 @@ class SHLight(NamedTuple):
 
     @property
     def bands(self) -> int:
+        """Number of SH bands, sqrt(K)."""
         return int(np.sqrt(self.coefficients.shape[0]))
 
 
@@ -154,6 +156,8 @@ class ColorTransform(NamedTuple):
 
 
 class ImageSize(NamedTuple):
+    """Image size in pixels."""
+
     width: int
     height: int
 
@@ -168,6 +172,7 @@ class MoMoCoefficients(NamedTuple):
 
     @classmethod
     def zeros(cls, shape: int = 0, albedo: int = 0, expression: int = 0, model_uri: str = ""):
+        """Return zero coefficient vectors of the given lengths (the model mean)."""
         return cls(np.zeros(shape), np.zeros(albedo), np.zeros(expression), model_uri)
 
 
@@ -190,7 +195,7 @@ class RenderParameter(NamedTuple):
 
 
 def default_square() -> RenderParameter:
-    """scalismo's ``RenderParameter.defaultSquare``: 512 x 512, face 1 m away, frontal SH."""
+    """Return scalismo's ``RenderParameter.defaultSquare``: 512 x 512, face 1 m away, frontal SH."""
     return RenderParameter(
         pose=Pose(),
         view=View(),

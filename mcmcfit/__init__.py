@@ -22,6 +22,9 @@ records, diagnostics), ``targets`` (likelihoods, priors), ``proposal_data``,
 ``jobs`` (fits as files), ``batch``, ``bench``, ``commands`` (the CLI); see
 ``docs/architecture.md``. ``mcmcfit`` may import ``albedo_model``, ``proposals``
 and ``pipeline``; nothing imports ``mcmcfit``.
+
+This module imports no project module when loaded: each name above imports its
+module (:func:`importlib.import_module`) on first use.
 """
 
 import importlib

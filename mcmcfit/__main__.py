@@ -1,4 +1,7 @@
-"""``python -m mcmcfit`` is the ``mcmcfit`` command."""
+"""``python -m mcmcfit`` is the ``mcmcfit`` command.
+
+This module imports only :mod:`mcmcfit.cli`.
+"""
 
 import sys
 

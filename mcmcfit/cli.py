@@ -4,6 +4,9 @@ Each module in :mod:`mcmcfit.commands` exposes ``register(subparsers)``, which
 adds its subcommand(s) and sets ``func(args) -> int`` as the handler. Project
 errors (:class:`albedo_model.errors.AlbedoModelError`) become one line on
 stderr and exit code 2.
+
+This module imports :mod:`albedo_model.errors`; building the parser imports
+:mod:`mcmcfit` (the version) and the :data:`COMMAND_MODULES` of :mod:`mcmcfit.commands`.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ COMMAND_MODULES = ("model", "params", "render", "fit", "demo", "pipeline", "batc
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser with every available subcommand."""
+    """Build the full argument parser with every available subcommand."""
     from mcmcfit import __version__
 
     parser = argparse.ArgumentParser(

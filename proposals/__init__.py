@@ -2,11 +2,13 @@
 
 Every proposal is a pure callable ``(rng, state) -> Move`` that declares the
 parameter blocks it may change (``touches``) and returns the exact log
-transition ratio ``log q(x | x') - log q(x' | x)``. Files: ``base`` (interface,
-mixtures), ``pose``, ``coefficients``, ``colour``, ``light``, ``light_solver``,
-``schedule`` (the default mixtures).
+transition ratio ``log q(x | x') - log q(x' | x)``. Modules: ``base`` (interface,
+mixtures), ``pose``, ``coefficients``, ``color_transform``, ``light``,
+``light_solver`` (the SH least-squares light), ``albedo_solver`` (the albedo
+conditional), ``schedule`` (the default mixtures).
 
-This package imports only :mod:`albedo_model`.
+The package imports only :mod:`albedo_model` (camera, errors, params, sh). This file
+imports every module of the package but ``albedo_solver``.
 """
 
 from proposals.base import Mixture, Move, Proposal, ProposalState, leaves, mixture, no_move

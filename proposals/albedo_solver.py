@@ -192,6 +192,7 @@ class AlbedoConditional:
     _factorisation: _Factorisation = field(default_factory=_Factorisation, repr=False)
 
     def __post_init__(self) -> None:
+        """Validate ``sigma``."""
         check_scale(self.sigma, "albedo conditional sigma")
 
     def conditional(self, state: ProposalState):
@@ -248,6 +249,7 @@ class LightAlbedoExchange:
     _factorisation: _Factorisation = field(default_factory=_Factorisation, repr=False)
 
     def __post_init__(self) -> None:
+        """Validate the scales and name the proposal after ``log_sigma`` if unnamed."""
         check_scale(self.log_sigma, "light-albedo exchange log sigma")
         check_scale(self.sigma, "light-albedo exchange sigma")
         if not self.name:

@@ -7,7 +7,8 @@ stage, their render ``state.render_state``). A proposal never mutates it and
 draws all randomness from the ``numpy.random.Generator`` it is given. What a
 data-driven proposal reads (the SH light solver's points, the albedo
 conditional's linear system) is computed from that explicit input, so it
-cannot belong to another state than the one the move starts from. It declares the parameter blocks it may change (``touches``), and each
+cannot belong to another state than the one the move starts from. It
+declares the parameter blocks it may change (``touches``), and each
 :class:`Move` reports the blocks it did change (``touched``), so that the
 sampler recomputes only the render stages that depend on them (e.g. ray
 casting only when pose, camera or geometry moved).
@@ -19,7 +20,7 @@ specular coefficients); LIGHT -> ``environment_map`` and ``directional_light``;
 COLOR_TRANSFORM -> ``color_transform``; SPECULAR_EXPONENT -> ``specular_exponent``.
 ``view`` and ``image_size`` are never proposed.
 
-This module imports only :mod:`albedo_model`.
+This module imports only :mod:`albedo_model.errors` and :mod:`albedo_model.params`.
 """
 
 from __future__ import annotations
@@ -102,7 +103,7 @@ class Proposal(Protocol):
 
 
 def no_move(params: RenderParameter, name: str) -> Move:
-    """The identity move (x' = x, ratio 0): used when a proposal has nothing to move.
+    """Return the identity move (x' = x, ratio 0), for a proposal with nothing to move.
 
     Returning the current state is a valid kernel when the condition that
     triggers it depends only on coordinates the proposal does not change (an
@@ -164,6 +165,7 @@ class Mixture:
     _cumulative: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        """Derive ``touches`` (the union of the components') and the cumulative weights."""
         touches = Block.NONE
         for c in self.components:
             touches |= c.touches
@@ -181,7 +183,7 @@ class Mixture:
 
 
 def mixture(*weighted: tuple[float, Proposal], name: str = "mixture") -> Mixture:
-    """A mixture of proposals, ``mixture((w1, p1), (w2, p2), ..., name="pose")``.
+    """Mix proposals: ``mixture((w1, p1), (w2, p2), ..., name="pose")``.
 
     Parameters
     ----------
@@ -221,7 +223,7 @@ def mixture(*weighted: tuple[float, Proposal], name: str = "mixture") -> Mixture
 
 
 def leaves(proposal: Proposal, weight: float = 1.0) -> Iterator[tuple[float, Proposal]]:
-    """The non-mixture proposals inside ``proposal`` with their overall probabilities.
+    """Yield the non-mixture proposals inside ``proposal`` with their overall probabilities.
 
     Nested mixtures are flattened (probabilities multiply); any other proposal
     (including wrappers such as ``ImageCentered``) is a leaf.

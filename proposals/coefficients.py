@@ -5,7 +5,8 @@ The coefficient vectors live in ``params.momo``: ``shape`` (Block.SHAPE),
 vector shared by diffuse and specular albedo). They are standard-normal PCA
 coefficients, so the scales are in prior standard deviations.
 
-This module imports only :mod:`albedo_model` and :mod:`proposals.base`.
+This module imports only :mod:`albedo_model.errors`, :mod:`albedo_model.params` and
+:mod:`proposals.base`.
 """
 
 from __future__ import annotations
@@ -71,6 +72,7 @@ class CoefficientWalk:
     touches: Block = field(init=False)
 
     def __post_init__(self) -> None:
+        """Validate the block and scales, set ``touches`` and a default name."""
         _check_block(self.block)
         check_scale(self.sigma, "coefficient walk sigma")
         if self.index is not None and self.block_size is not None:
@@ -133,6 +135,7 @@ class Caricature:
     touches: Block = field(init=False)
 
     def __post_init__(self) -> None:
+        """Validate the block and scale, set ``touches`` and a default name."""
         _check_block(self.block)
         check_scale(self.sigma, "caricature sigma")
         object.__setattr__(self, "touches", self.block)

@@ -5,7 +5,8 @@ The transform is ``c' = gain * (contrast c + (1 - contrast) Y(c)) + offset``
 ``GaussianColorProposal`` discards its gain and contrast updates (only the
 offset moves); here all three move.
 
-This module imports only :mod:`albedo_model` and :mod:`proposals.base`.
+This module imports only :mod:`albedo_model.errors`, :mod:`albedo_model.params` and
+:mod:`proposals.base`.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import ClassVar
 import numpy as np
 
 from albedo_model.errors import InputError
-from albedo_model.params import Block, RenderParameter
+from albedo_model.params import Block
 from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = ["ColorTransformWalk"]
@@ -34,7 +35,7 @@ class ColorTransformWalk:
         ``contrast += N(0, contrast_sigma)`` (0: kept).
     offset_sigma : float
         Each channel's ``offset_c += N(0, offset_sigma)`` (0: kept).
-    name : str, optional (default ``"colour-<gain_log_sigma>"``)
+    name : str, optional (default ``"color-transform-<gain_log_sigma>"``)
 
     Notes
     -----
@@ -53,13 +54,14 @@ class ColorTransformWalk:
     touches: ClassVar[Block] = Block.COLOR_TRANSFORM
 
     def __post_init__(self) -> None:
+        """Validate the scales (at least one non-zero) and set a default name."""
         check_scale(self.gain_log_sigma, "gain log sigma", allow_zero=True)
         check_scale(self.contrast_sigma, "contrast sigma", allow_zero=True)
         check_scale(self.offset_sigma, "offset sigma", allow_zero=True)
         if not (self.gain_log_sigma or self.contrast_sigma or self.offset_sigma):
             raise InputError("colour-transform walk needs at least one non-zero sigma")
         if not self.name:
-            object.__setattr__(self, "name", f"colour-{self.gain_log_sigma:g}")
+            object.__setattr__(self, "name", f"color-transform-{self.gain_log_sigma:g}")
 
     def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
         """Draw a move from the accepted ``state`` (not modified) with ``rng``."""

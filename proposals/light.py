@@ -6,7 +6,7 @@ number of coefficients. The reference's SH proposals (``reference-sampler.md``
 §4) are reproduced with exact ratios; the reference returns -inf for the
 energy-preserving perturbation, which is a bug (its ratio is 0, see below).
 
-This module imports only :mod:`albedo_model` and :mod:`proposals.base`.
+This module imports only :mod:`albedo_model.params` and :mod:`proposals.base`.
 """
 
 from __future__ import annotations
@@ -55,6 +55,7 @@ class SHIntensity:
     touches: ClassVar[Block] = Block.LIGHT
 
     def __post_init__(self) -> None:
+        """Validate the scale and set a default name."""
         check_scale(self.log_sigma, "SH intensity log sigma")
         if not self.name:
             object.__setattr__(self, "name", f"sh-intensity-{self.log_sigma:g}")
@@ -87,6 +88,7 @@ class SHBandMixer:
     touches: ClassVar[Block] = Block.LIGHT
 
     def __post_init__(self) -> None:
+        """Validate the scale and set a default name."""
         check_scale(self.log_sigma, "SH band mixer log sigma")
         if not self.name:
             object.__setattr__(self, "name", f"sh-bands-{self.log_sigma:g}")
@@ -142,6 +144,7 @@ class SHPerturbation:
     touches: ClassVar[Block] = Block.LIGHT
 
     def __post_init__(self) -> None:
+        """Validate the scale and set a default name."""
         check_scale(self.sigma, "SH perturbation sigma")
         if not self.name:
             tag = "sh-perturb-fixed" if self.fix_energy else "sh-perturb"
@@ -190,6 +193,7 @@ class SHColorShift:
     touches: ClassVar[Block] = Block.LIGHT
 
     def __post_init__(self) -> None:
+        """Validate the scale and set a default name."""
         check_scale(self.sigma, "SH colour shift sigma")
         if not self.name:
             object.__setattr__(self, "name", f"sh-colour-{self.sigma:g}")
@@ -223,6 +227,7 @@ class SHSpatial:
     touches: ClassVar[Block] = Block.LIGHT
 
     def __post_init__(self) -> None:
+        """Validate the scale and set a default name."""
         check_scale(self.sigma, "SH spatial sigma")
         if not self.name:
             object.__setattr__(self, "name", f"sh-spatial-{self.sigma:g}")
@@ -252,6 +257,7 @@ class SpecularExponentScaling:
     touches: ClassVar[Block] = Block.SPECULAR_EXPONENT
 
     def __post_init__(self) -> None:
+        """Validate the scale and set a default name."""
         check_scale(self.log_sigma, "specular exponent log sigma")
         if not self.name:
             object.__setattr__(self, "name", f"specular-exponent-{self.log_sigma:g}")

@@ -7,7 +7,8 @@ colour transform inverted), the diffuse SH-Lambert model
 proposal solves for L and draws around the solution. Only the diffuse part is
 modelled (no specular term).
 
-This module imports only :mod:`albedo_model` (params, sh) and :mod:`proposals.base`.
+This module imports only :mod:`albedo_model` (errors, params, sh) and
+:mod:`proposals.base`.
 """
 
 from __future__ import annotations
@@ -132,6 +133,7 @@ class SHLightSolver:
     touches: ClassVar[Block] = Block.LIGHT
 
     def __post_init__(self) -> None:
+        """Validate ``sigma`` and ``ridge``."""
         check_scale(self.sigma, "SH solver sigma")
         check_scale(self.ridge, "ridge", allow_zero=True)
 

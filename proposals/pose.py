@@ -3,7 +3,8 @@
 Mirrors scalismo-faces' pose proposals (``reference-sampler.md`` §4) with exact
 log transition ratios. Angles in radians, translations and distances in mm.
 
-This module imports only :mod:`albedo_model` (params, camera) and :mod:`proposals.base`.
+This module imports only :mod:`albedo_model` (camera, errors, params) and
+:mod:`proposals.base`.
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ class Rotation:
     touches: ClassVar[Block] = Block.POSE
 
     def __post_init__(self) -> None:
+        """Validate the axis and scale and set a default name."""
         if self.axis not in AXES:
             raise InputError(f"rotation axis must be one of {AXES}, got {self.axis!r}")
         check_scale(self.sigma, "rotation sigma")
@@ -79,6 +81,7 @@ class Translation:
     touches: ClassVar[Block] = Block.POSE
 
     def __post_init__(self) -> None:
+        """Validate the scale and set a default name."""
         check_scale(self.sigma, "translation sigma")
         if not self.name:
             object.__setattr__(self, "name", f"translation-{self.sigma:g}")
@@ -130,6 +133,7 @@ class Distance:
     touches: ClassVar[Block] = Block.POSE | Block.CAMERA
 
     def __post_init__(self) -> None:
+        """Validate the scales and set a default name."""
         check_scale(self.sigma, "distance sigma")
         check_scale(self.min_distance, "distance min_distance", allow_zero=True)
         if not self.name:
@@ -171,6 +175,7 @@ class FocalScaling:
     touches: ClassVar[Block] = Block.CAMERA
 
     def __post_init__(self) -> None:
+        """Validate the scale and set a default name."""
         check_scale(self.sigma, "focal scaling sigma")
         if not self.name:
             object.__setattr__(self, "name", f"focal-{self.sigma:g}")
@@ -234,6 +239,7 @@ class ImageCentered:
     touches: Block = field(init=False)
 
     def __post_init__(self) -> None:
+        """Set ``touches`` (the inner proposal's plus CAMERA) and a default name."""
         object.__setattr__(self, "touches", self.inner.touches | Block.CAMERA)
         if not self.name:
             object.__setattr__(self, "name", f"{self.inner.name}@{self.label}")

@@ -32,7 +32,8 @@ image stage adds the albedo conditional (a Gibbs-like draw of every albedo
 coefficient) and light-albedo exchanges (light intensity x albedo ridge),
 both accepted by one joint MH test (:mod:`proposals.albedo_solver`).
 
-This module imports only :mod:`albedo_model` and :mod:`proposals`.
+This module imports only :mod:`albedo_model.params` and the other :mod:`proposals`
+modules (albedo_solver, base, coefficients, color_transform, light, light_solver, pose).
 """
 
 from __future__ import annotations
@@ -105,7 +106,7 @@ def _anchor(landmark_point: LandmarkPoint, name: str) -> Callable[[RenderParamet
 
 def pose_proposal(landmark_point: LandmarkPoint | None, *,
                   landmarks: Sequence[str] = CENTERING_LANDMARKS) -> Mixture:
-    """The reference's pose mixture (touches POSE | CAMERA).
+    """Build the reference's pose mixture (touches POSE | CAMERA).
 
     Parameters
     ----------
@@ -161,14 +162,14 @@ def momo_proposal(*, block_size: int | None = 10, expression_weight: float = 0.5
 
 
 def color_transform_proposal() -> Mixture:
-    """The colour-transform mixture (gain, contrast and offset all move)."""
+    """Build the colour-transform mixture (gain, contrast and offset all move)."""
     return mixture(*((w, ColorTransformWalk(g, 0.01, 1e-4))
-                     for g, w in zip((0.01, 0.001, 0.0005), _SCALE_WEIGHTS)), name="colour")
+                     for g, w in zip((0.01, 0.001, 0.0005), _SCALE_WEIGHTS)), name="color-transform")
 
 
 def light_proposal(solver_data: LightData | None = None, *, solver_sigma: float = 0.005,
                    solver_ridge: float = 1e-4) -> Mixture:
-    """The SH light mixture, with the least-squares solver when data are given.
+    """Build the SH light mixture, with the least-squares solver when data are given.
 
     Parameters
     ----------
@@ -199,7 +200,7 @@ def default_image_proposal(landmark_point: LandmarkPoint | None, *,
                            solver_ridge: float = 1e-4, albedo_data: AlbedoData | None = None,
                            albedo_weight: float = 0.25, pixel_sigma: float = 0.043,
                            expression_weight: float = 0.25) -> Mixture:
-    """The image-stage proposal: pose 1 : colour 1 : MoMo 3 : light 2 : specular exponent.
+    """Build the image-stage proposal: pose 1 : colour 1 : MoMo 3 : light 2 : specular exponent.
 
     Parameters
     ----------
@@ -249,7 +250,7 @@ def default_image_proposal(landmark_point: LandmarkPoint | None, *,
 
 def landmark_stage_proposal(landmark_point: LandmarkPoint | None, *, shape_weight: float = 0.0,
                             block_size: int | None = 10) -> Mixture:
-    """The landmark-stage proposal: the pose mixture (as the reference), optionally with shape.
+    """Build the landmark-stage proposal: the reference's pose mixture, optionally with shape.
 
     Parameters
     ----------

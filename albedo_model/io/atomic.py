@@ -2,6 +2,8 @@
 
 A failed write never leaves a partial file at the target path, and never
 clobbers an existing file with garbage.
+
+This module imports nothing from the project.
 """
 
 from __future__ import annotations

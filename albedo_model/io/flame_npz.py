@@ -25,7 +25,8 @@ orthogonal only up to the texture resampling AlbedoMM did, so
 :meth:`PCAPart.project` is approximate there. Rows keep the file's image order
 (row 0 = top, v = 1).
 
-Imports only ``albedo_model`` modules.
+This module imports only :mod:`albedo_model.errors`, :mod:`albedo_model.pca` and
+:mod:`albedo_model.io.atomic`.
 """
 
 from __future__ import annotations

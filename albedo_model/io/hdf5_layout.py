@@ -7,7 +7,10 @@ layouts (MoMo, AlbedoMM, albedo part) are in :mod:`albedo_model.io.momo_h5`.
 
 Every read goes through :class:`H5Reader`, which turns h5py/OS errors and
 layout violations into :class:`~albedo_model.errors.FormatError` naming the
-file. Imports only ``albedo_model.errors``, ``albedo_model.pca`` and ``albedo_model.io.tlms``.
+file.
+
+This module imports only :mod:`albedo_model.errors`, :mod:`albedo_model.pca` and
+:mod:`albedo_model.io.tlms`.
 """
 
 from __future__ import annotations

@@ -7,7 +7,8 @@ npz are recognised and refused with a message saying what to do instead.
 ``"default"`` names the built-in model, resolved lazily through
 ``albedo_model.default_model.default_model_path()``.
 
-Imports only ``albedo_model`` modules.
+This module imports only :mod:`albedo_model.default_model`, :mod:`albedo_model.errors`,
+:mod:`albedo_model.model` and :mod:`albedo_model.io.momo_h5`.
 """
 
 from __future__ import annotations

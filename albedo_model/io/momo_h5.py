@@ -25,7 +25,8 @@ Writing produces float32 arrays, so ``read(write(m))`` is bit-identical for
 models whose arrays are float32 (every model read from a file); float64 models
 are rounded to float32 once. Writes are atomic.
 
-Imports only ``albedo_model`` modules.
+This module imports only :mod:`albedo_model.errors`, :mod:`albedo_model.model`,
+:mod:`albedo_model.pca`, :mod:`albedo_model.io.atomic` and :mod:`albedo_model.io.hdf5_layout`.
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 Modules
 -------
 cache_table
-    The one stage -> blocks table: which parameter blocks each cached product reads.
+    The one stage -> blocks table: which parameter blocks each cached product
+    reads, and the version stamps the caches are keyed on.
 renderer
     :class:`Renderer`: the stages of a render, recomputed only where a move's
     blocks make them stale; :func:`render`, one uncached image.
@@ -12,18 +13,25 @@ state
     :class:`Deferred` caches.
 stages
     The jitted stages (normals, pixel hits, geometry, albedo, light, image).
+pixel_work
+    The pixel set the per-pixel caches hold, what a likelihood fuses, view rays.
 instances
-    Shape and albedo instances, updated by coefficient-block deltas.
-raycast, embree_refit, scene_slots
-    Embree ray casting (the only ``embreex`` importer), in-place BVH refit, and
-    the double-buffered scenes that make a rejected geometry move free.
+    Shape and albedo instances (float32), updated by coefficient-block deltas.
+albedo_updates
+    The albedo instance on the device, updated by coefficient-block deltas.
+raycast, ray_batches, embree_refit, scene_slots
+    Embree ray casting (the only ``embreex`` importer), its NumPy side (ray
+    buffers, hit records, windows, leak closing), in-place BVH refit, and the
+    double-buffered scenes that make a rejected geometry move free.
 normals
     Vertex normals on the device.
 visibility
     Cast shadows of a directional light and visible landmarks.
 
-Imports :mod:`albedo_model` (model, params, camera, errors) and
-:mod:`albedo_model.shading`; nothing above ``albedo_model``.
+The package imports :mod:`albedo_model` (camera, errors, model, params, pca) and
+:mod:`albedo_model.shading` (effects, image_formation, interpolation); nothing above
+``albedo_model``. This file imports :mod:`~albedo_model.render.cache_table`,
+:mod:`~albedo_model.render.renderer` and :mod:`~albedo_model.render.state`.
 """
 
 from albedo_model.render.cache_table import STAGE_DEPS

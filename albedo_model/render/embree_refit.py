@@ -13,16 +13,17 @@ not verified (object sizes, a round trip through ``is_committed``, the device
 object's identity) and then asks Embree for the scene's device, which must be
 the device the wrapper holds. Any mismatch raises :class:`RefitUnavailable`;
 the caller (:mod:`albedo_model.render.raycast`, the only user) then falls back to
-rebuilding scenes. This module does not import embreex; it only locates its
-shared library.
+rebuilding scenes.
 
 Notes
 -----
 Embree enum values used (embree4 headers): ``RTC_SCENE_FLAG_DYNAMIC = 1``,
-``RTC_BUILD_QUALITY_LOW = 0
-_BUILD_QUALITY_REFIT = 3``, ``RTC_BUFFER_TYPE_VERTEX = 1``. embreex stores
-vertices as ``RTC_FORMAT_FLOAT3`` with a 16-byte stride, i.e. a float32 (N, 4)
-array whose last column is padding.
+``RTC_BUILD_QUALITY_LOW = 0``, ``RTC_BUILD_QUALITY_REFIT = 3``,
+``RTC_BUFFER_TYPE_VERTEX = 1``. embreex stores vertices as ``RTC_FORMAT_FLOAT3``
+with a 16-byte stride, i.e. a float32 (N, 4) array whose last column is padding.
+
+This module imports nothing from the project, and not embreex either: it only
+locates embreex's shared library.
 """
 
 from __future__ import annotations
@@ -208,7 +209,7 @@ def prepare_refit(scene, device, vertices: np.ndarray) -> RefitHandle:
 
 
 def _check_mesh(n: int = 16) -> tuple[np.ndarray, np.ndarray]:
-    """Closed UV sphere (poles shared), (n*(n-1)+2, 3) vertices, counter-clockwise outside."""
+    """Make a closed UV sphere: (n*(n-1)+2, 3) vertices (poles shared), counter-clockwise."""
     th = np.linspace(0, np.pi, n + 1)[1:-1]
     ph = np.linspace(0, 2 * np.pi, n, endpoint=False)
     t, p = np.meshgrid(th, ph, indexing="ij")

@@ -148,7 +148,7 @@ class InstanceUpdater:
         return total.astype(np.float32)
 
     def update(self, terms, inst: np.ndarray, count: int) -> tuple[np.ndarray, int]:
-        """The instance for new coefficients from ``inst``, the instance for the old ones.
+        """Compute the instance for the new coefficients from ``inst``, the one for the old ones.
 
         Parameters
         ----------
@@ -184,10 +184,12 @@ class InstanceUpdater:
 
 
 def _many(changed: int, rank: int) -> bool:
-    """Recompute in full rather than add deltas: more than half of a part's
-    coefficients changed, and more than a few (a low-rank part, e.g. 3
-    expression coefficients, is cheaper to update than to recompute with the
-    other parts)."""
+    """Tell whether to recompute in full rather than add deltas.
+
+    True when more than half of a part's coefficients changed, and more than a
+    few (a low-rank part, e.g. 3 expression coefficients, is cheaper to update
+    than to recompute with the other parts).
+    """
     return changed > 8 and 2 * changed > rank
 
 

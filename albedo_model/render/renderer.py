@@ -26,7 +26,9 @@ costs nothing to undo. Only the rays inside the projected bounding box of the
 mesh are cast, and the caches hold a pixel set
 (:mod:`albedo_model.render.pixel_work`): work follows the face, not the image.
 
-This module imports only ``albedo_model`` modules.
+This module imports :mod:`albedo_model` (camera, errors, model, params), the
+:mod:`albedo_model.render` modules but embree_refit, normals and ray_batches, and
+:mod:`albedo_model.shading` (image_formation, interpolation).
 """
 
 from __future__ import annotations
@@ -118,7 +120,7 @@ class Renderer:
 
     # -- effects ------------------------------------------------------------
     def effects(self, params: RenderParameter) -> Effects:
-        """The effect set this renderer compiles for ``params``."""
+        """Return the effect set this renderer compiles for ``params``."""
         return effects_for(params, self.specular, shadows=self.shadows, gamma=self.gamma,
                            directional_specular_map=self.directional_specular_map)
 
@@ -203,7 +205,7 @@ class Renderer:
         return state
 
     def update(self, state: RenderState, params: RenderParameter, touched: Block) -> RenderState:
-        """The state for ``params``, recomputing only what ``touched`` makes stale.
+        """Return the state for ``params``, recomputing only what ``touched`` makes stale.
 
         Parameters
         ----------
@@ -370,7 +372,7 @@ class Renderer:
                                state.params, caster, names)
 
     def _world_views(self, p: RenderParameter) -> tuple:
-        """The pixel coordinates of the image (device, cached per size) and the packed camera."""
+        """Return the image's pixel coordinates (device, cached per size) and the packed camera."""
         w, h = int(p.image_size.width), int(p.image_size.height)
         if self._views_cache.get("size") != (w, h):
             self._views_cache = {"size": (w, h), "coords": jax.device_put(pixel_coordinates(w, h))}

@@ -49,6 +49,7 @@ class SceneSlots:
 
     @property
     def pending(self) -> bool:
+        """True while a proposed geometry awaits :meth:`accept` or :meth:`reject`."""
         return self._pending
 
     def propose(self, vertices: np.ndarray) -> RayCaster:

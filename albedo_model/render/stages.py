@@ -9,7 +9,7 @@ attributes, light and likelihood of a ray cast 5.1 ms as stages, 3.0 ms fused;
 an albedo step's gathers and likelihood 3.2 ms and 0.8 ms).
 
 This module imports :mod:`albedo_model.render.normals`, :mod:`albedo_model.render.state`
-and :mod:`albedo_model.shading`.
+and :mod:`albedo_model.shading` (effects, image_formation, interpolation).
 """
 
 from __future__ import annotations
@@ -53,13 +53,16 @@ def _at_pixels(values, pixels):
 
 @jax.jit
 def hits_stage(triangles, prim_id, bary, pixels):
-    """:func:`albedo_model.shading.interpolation.pixel_hits` of the whole-image ray-cast buffers
-    ``prim_id`` (H W,) and ``bary`` (H W, 2) at the pixel set ``pixels`` (or all)."""
+    """Gather the hit triangles' corners and weights at the pixel set ``pixels`` (or all).
+
+    :func:`albedo_model.shading.interpolation.pixel_hits` of the whole-image ray-cast
+    buffers ``prim_id`` (H W,) and ``bary`` (H W, 2).
+    """
     return pixel_hits(triangles, _at_pixels(prim_id, pixels), _at_pixels(bary, pixels))
 
 
 def _views(view, pixels):
-    """Unit directions from the pixels' surface points towards the eye, world frame.
+    """Compute unit directions from the pixels' surface points towards the eye, world frame.
 
     ``view`` is ``((x, y), camera)`` as :meth:`Renderer._world_views` packs it: pixel
     coordinates of the image and (fx, fy, cx, cy, orthographic, R (3x3) world to
@@ -87,9 +90,12 @@ def _geometry(effects: Effects, hits, normals, rotation, view, pixels) -> PixelG
 
 @functools.cache
 def geometry_stage(effects: Effects):
-    """Jitted ``f(hits, normals, rotation, view, pixels) -> PixelGeometry`` (``view`` as
-    :func:`_views` reads it when :func:`~albedo_model.shading.interpolation.needs_view`, else
-    None; ``pixels`` the state's device pixel set or None)."""
+    """Build the jitted ``f(hits, normals, rotation, view, pixels) -> PixelGeometry``.
+
+    ``view`` is as :func:`_views` reads it when
+    :func:`~albedo_model.shading.interpolation.needs_view`, else None; ``pixels``
+    the state's device pixel set or None.
+    """
     return jax.jit(functools.partial(_geometry, effects))
 
 
@@ -116,8 +122,10 @@ def albedo_stage(effects: Effects):
 
 @jax.jit
 def albedo_delta_stage(albedo_dev, basis_t, idx, delta):
-    """``albedo_dev`` plus ``sum_j delta_j basis_t[idx_j]`` in its leading ``basis_t.shape[1]``
-    entries (flattened), in one fused pass over the changed rows of the transposed basis:
+    """Add ``sum_j delta_j basis_t[idx_j]`` to the device albedo, on the device.
+
+    The sum goes into the leading ``basis_t.shape[1]`` entries of ``albedo_dev``
+    (flattened), in one fused pass over the changed rows of the transposed basis:
     about as fast as the same product in NumPy, and no host-to-device copy.
 
     Kept out of the interpolation's ``jit``: there XLA fuses the row sum into every
@@ -133,7 +141,11 @@ def albedo_delta_stage(albedo_dev, basis_t, idx, delta):
 
 
 def light_effects(effects: Effects) -> Effects:
-    """The switches :func:`albedo_model.shading.image_formation.pixel_light` depends on (others at defaults)."""
+    """Reduce ``effects`` to the switches the light stage depends on (others at defaults).
+
+    Those are the switches :func:`albedo_model.shading.image_formation.pixel_light`
+    reads; effect sets that agree on them share the cached light and its program.
+    """
     return effects._replace(color_transform=False, gamma=False, clamp=True)
 
 
@@ -147,8 +159,10 @@ def light_stage(effects: Effects):
 
 @functools.cache
 def combine_stage(effects: Effects, n_pixels: int):
-    """Jitted ``f(light, albedo, mask, packed, pixels) -> Shaded`` of the whole image
-    (``n_pixels`` = H W; ``pixels`` the state's device pixel set or None)."""
+    """Build the jitted ``f(light, albedo, mask, packed, pixels) -> Shaded`` of the whole image.
+
+    ``n_pixels`` = H W; ``pixels`` is the state's device pixel set or None.
+    """
     def combine(light, albedo, mask, packed, pixels) -> Shaded:
         params = unpack_shading_params(packed)
         out = combine_pixels(effects, light, albedo, mask, params)
@@ -183,8 +197,10 @@ def fused_stage(effects: Effects, fn, n_pixels: int, pixel_set: bool = False):
 
 @functools.cache
 def image_stage(effects: Effects, fn, fused: frozenset, n_pixels: int, pixel_set: bool = False):
-    """Jitted ``f(inputs, *args) -> fn(rgb, mask, *args)`` computing the pixel attributes
-    named in ``fused`` (of "hits", "geometry", "albedo", "light") on the way.
+    """Build the jitted ``f(inputs, *args) -> fn(rgb, mask, *args)`` with fused attributes.
+
+    It computes the pixel attributes named in ``fused`` (of "hits", "geometry",
+    "albedo", "light") on the way.
 
     ``inputs`` is a dict: always ``packed`` (shading parameters), ``prim_id`` (of the whole
     image) and ``pixels`` (the pixel set, or None); ``triangles``, ``bary`` with "hits" fused,
@@ -225,6 +241,6 @@ def image_stage(effects: Effects, fn, fused: frozenset, n_pixels: int, pixel_set
 
 
 def pixels_satisfy(geometry: Deferred, albedo: Deferred, effects: Effects) -> bool:
-    """True when (deferred) pixel attributes hold everything ``effects`` reads."""
+    """Tell whether the (deferred) pixel attributes hold everything ``effects`` reads."""
     return ((needs_view(geometry.effects) or not needs_view(effects))
             and (needs_specular_albedo(albedo.effects) or not needs_specular_albedo(effects)))

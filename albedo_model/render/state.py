@@ -61,11 +61,13 @@ class HostAlbedo:
 
     @property
     def diffuse(self) -> np.ndarray:
+        """Diffuse albedo (row 0) as a (3n,) float32 view, read-only."""
         self.array
         return self._host[1]
 
     @property
     def specular(self) -> np.ndarray | None:
+        """Specular albedo (row 1) as a (3n,) float32 view, or None with one row."""
         self.array
         return self._host[2]
 
@@ -117,6 +119,7 @@ class Deferred:
         return self._value
 
     def __getattr__(self, name: str):
+        """Read a field of the value (computing it first); private names are not forwarded."""
         if name.startswith("_"):
             raise AttributeError(name)
         return getattr(self.value, name)

@@ -14,7 +14,9 @@ image_formation
 naive
     A deliberately naive shader: the benchmark baseline and the tests' reference.
 
-Imports :mod:`albedo_model` (params, sh) only; never :mod:`albedo_model.render`.
+The package imports :mod:`albedo_model` (params, sh) only, never
+:mod:`albedo_model.render`. This file imports :mod:`~albedo_model.shading.effects`
+and :mod:`~albedo_model.shading.image_formation`.
 """
 
 from albedo_model.shading.effects import Effects, effects_for

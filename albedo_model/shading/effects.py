@@ -70,7 +70,7 @@ def effects_for(
     clamp: bool = True,
     directional_specular_map: bool = False,
 ) -> Effects:
-    """The effect set a scene needs.
+    """Return the effect set a scene needs.
 
     Specular is on iff the model has a specular part, the caller asks for it and
     the SH light is non-empty (AlbedoMM's specular reuses the SH light);

@@ -211,7 +211,7 @@ def pixel_light(effects: Effects, geometry: PixelGeometry, params: ShadingParams
 
 def combine_pixels(effects: Effects, light: PixelLight, albedo: PixelAlbedo, mask,
                    params: ShadingParams) -> Shaded:
-    """The image from light transport and albedo: colour transform, clamp, gamma, background.
+    """Form the image from light and albedo: colour transform, clamp, gamma, background.
 
     Parameters
     ----------
@@ -288,7 +288,7 @@ def _shade(
 
 
 def pixel_shader_function(effects: Effects) -> Callable[..., Shaded]:
-    """The pure (un-jitted) :func:`shade_pixels` for one effect set, to compose inside a ``jit``.
+    """Return the pure (un-jitted) :func:`shade_pixels` of one effect set, to use in a ``jit``.
 
     Returns ``f(geometry, albedo, params, shadow) -> Shaded``; validates ``effects``.
     """
@@ -297,7 +297,7 @@ def pixel_shader_function(effects: Effects) -> Callable[..., Shaded]:
 
 
 def shader_function(effects: Effects) -> Callable[..., Shaded]:
-    """The pure (un-jitted) shader for one effect set, to compose inside a larger ``jit``.
+    """Return the pure (un-jitted) shader for one effect set, to compose in a larger ``jit``.
 
     Jitting shading together with the likelihood lets XLA fuse the per-pixel
     shading into the likelihood's reduction (no image is written out); with all
@@ -310,7 +310,7 @@ def shader_function(effects: Effects) -> Callable[..., Shaded]:
 
 @functools.cache
 def build_shader(effects: Effects) -> Callable[..., Shaded]:
-    """The jitted shader for one effect set (cached; one compile per input shape).
+    """Return the jitted shader for one effect set (cached; one compile per input shape).
 
     Returns ``f(triangles, normals, diffuse, specular, prim_id, bary, ray_dirs,
     params, shadow) -> Shaded`` with the arguments of :func:`shade`.

@@ -5,7 +5,8 @@ obvious way: (P, 3) arrays, an (P, 9) @ (9, 3) SH product, ``x ** (1/2.2)``, and
 every effect always computed and multiplied by a 0/1 switch (one compiled
 function for all effect sets). Do not use it for fitting.
 
-This module imports only :mod:`albedo_model.shading.image_formation` and :mod:`albedo_model.sh`.
+This module imports only :mod:`albedo_model.params`, :mod:`albedo_model.sh` and
+:mod:`albedo_model.shading.image_formation`.
 """
 
 from __future__ import annotations

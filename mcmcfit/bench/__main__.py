@@ -1,4 +1,8 @@
-"""``python -m mcmcfit.bench render|fit [options]``: same as ``mcmcfit bench render|fit``."""
+"""``python -m mcmcfit.bench render|fit [options]``: same as ``mcmcfit bench render|fit``.
+
+This module imports :mod:`mcmcfit` (the BLAS thread default) and
+:mod:`mcmcfit.commands.bench`.
+"""
 
 import argparse
 import sys
@@ -8,6 +12,7 @@ from mcmcfit.commands.bench import add_fit_arguments, add_render_arguments, run_
 
 
 def main(argv=None) -> int:
+    """Run the benchmark ``argv`` names (default: ``sys.argv[1:]``); return the exit status."""
     parser = argparse.ArgumentParser(prog="python -m mcmcfit.bench")
     sub = parser.add_subparsers(dest="bench_command", metavar="BENCHMARK", required=True)
     add_render_arguments(sub.add_parser("render", help="ms per sampler step per proposal kind"))

@@ -1,5 +1,6 @@
-"""``mcmcfit bench fit``: the default schedule on the demo case, timed per stage and proposal kind,
-with the albedo accuracy reached at checkpoints along the chain.
+"""``mcmcfit bench fit``: the default schedule on the demo case, timed per stage and proposal kind.
+
+The report also gives the albedo accuracy reached at checkpoints along the chain.
 
 The demo case is :func:`mcmcfit.jobs.synthetic_case.synthetic_case` of the model
 with seed 0 (250 x 250, SH light, specular, gamma). One call of
@@ -9,7 +10,9 @@ and the first n image steps of every chain (the time a fit with
 ``steps=n`` would have taken, up to noise), and the accuracy there is scored
 from the samples kept up to step n (after the configured burn-in fraction).
 
-This module imports :mod:`albedo_model` and :mod:`mcmcfit`.
+This module imports :mod:`albedo_model.model`, :mod:`mcmcfit.fitting` (config, fit,
+result), :mod:`mcmcfit.jobs.synthetic_case` and :mod:`mcmcfit.outputs.accuracy`;
+writing a file imports :mod:`albedo_model.io.atomic`.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ DEFAULT_CHECKPOINTS = (500, 1000, 2000, 5000, 10000)
 
 
 def proposal_kind(name: str) -> str:
-    """The kind of a proposal leaf: its name without scales and centring landmark.
+    """Return the kind of a proposal leaf: its name without scales and centring landmark.
 
     ``"albedo-0.1"`` -> ``"albedo"``, ``"focal-0.05@left.lips.corner"`` -> ``"focal"``,
     ``"sh-bands-0.1"`` -> ``"sh-bands"``.
@@ -65,6 +68,7 @@ class FitBench:
     reference_seconds: float = REFERENCE_SECONDS
 
     def to_dict(self) -> dict:
+        """Return the measurements as a JSON-able dict (the config through its ``to_dict``)."""
         return {"config": self.config.to_dict(), "case_seed": self.case_seed, "size": self.size,
                 "timings": self.timings, "stage1_kinds": self.stage1_kinds,
                 "stage2_kinds": self.stage2_kinds, "curve": self.curve,
@@ -146,7 +150,7 @@ def run_fit_bench(model: MorphableModel, *, config: FitConfig | None = None, see
 
 
 def format_fit_bench(b: FitBench) -> str:
-    """The printed report."""
+    """Format the printed report of a fit benchmark."""
     t, cfg = b.timings, b.config
     lines = [
         f"fit benchmark: demo case synthetic_case(seed={b.case_seed}), {b.size}x{b.size}; "

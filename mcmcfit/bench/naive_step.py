@@ -6,7 +6,8 @@ the camera rays, vertex normals in NumPy, and the unspecialised
 :func:`albedo_model.shading.naive.shade_naive` on host arrays (copied to the
 device on each call), followed by the same likelihood as the fast path.
 
-This module imports only ``albedo_model``.
+This module imports only :mod:`albedo_model` (camera, model, params, render.raycast,
+shading.image_formation, shading.naive).
 """
 
 from __future__ import annotations

@@ -22,7 +22,8 @@ frontally so that the face covers about 60 % of the pixels.
 
 The result records and the table are in :mod:`mcmcfit.bench.render_report`.
 
-This module imports ``albedo_model`` and ``mcmcfit.bench``.
+This module imports :mod:`albedo_model` (camera, params, render.raycast,
+render.renderer) and :mod:`mcmcfit.bench` (naive_step, render_report, synthetic_face).
 """
 
 from __future__ import annotations

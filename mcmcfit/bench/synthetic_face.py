@@ -8,7 +8,7 @@ low-frequency Fourier fields over the grid, orthonormalised), with the ranks of
 the real models: shape 50, expression 5, albedo 50 shared by diffuse and
 specular. Deterministic for a seed; builds in about a second.
 
-This module imports only ``albedo_model``.
+This module imports only :mod:`albedo_model.model` and :mod:`albedo_model.pca`.
 """
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ def _part(rng: np.random.Generator, grid: tuple[np.ndarray, np.ndarray], mean: n
 def synthetic_face_model(seed: int = 0, n_lat: int = 232, n_lon: int = 232, *,
                          shape_rank: int = 50, expression_rank: int = 5,
                          albedo_rank: int = 50) -> MorphableModel:
-    """A deterministic synthetic morphable model of BFM size.
+    """Build a deterministic synthetic morphable model of BFM size.
 
     Parameters
     ----------

@@ -14,7 +14,10 @@ result
     :class:`~mcmcfit.fitting.result.FitResult`: chains, best and mean parameters, diagnostics.
 progress
     The progress bar.
+cache_check
+    ``--check-cache``: every cached product of a chain against a fresh computation.
 
-Imports :mod:`albedo_model`, :mod:`proposals`, :mod:`mcmcfit.sampling`,
-:mod:`mcmcfit.targets` and :mod:`mcmcfit.proposal_data`.
+The package imports :mod:`albedo_model`, :mod:`proposals` (base, light_solver, schedule),
+:mod:`mcmcfit.sampling`, :mod:`mcmcfit.targets` and :mod:`mcmcfit.proposal_data`.
+This file imports nothing.
 """

@@ -18,8 +18,8 @@ and miss when an instance differs in its last bits: up to :data:`EDGE_PIXELS`
 such pixels are allowed (and the image likelihood is then not compared). The
 proposal data must be identical.
 
-This module imports :mod:`albedo_model` (errors, render), :mod:`proposals.base`,
-:mod:`mcmcfit.sampling.kernel` and :mod:`mcmcfit.targets.face`.
+This module imports :mod:`albedo_model` (errors, render.renderer, render.state),
+:mod:`proposals.base`, :mod:`mcmcfit.sampling.kernel` and :mod:`mcmcfit.targets.face`.
 """
 
 from __future__ import annotations
@@ -51,11 +51,10 @@ class CacheMismatchError(AlbedoModelError):
 
 
 def _uncached(data):
-    """A copy of a proposal-data object without its kept values (computes from scratch)."""
+    """Return a copy of a proposal-data object without its kept values (computes from scratch)."""
     fresh = copy.copy(data)
-    for name, value in vars(data).items():
-        if name.startswith("_") and isinstance(value, tuple) and len(value) == 2 \
-                and name in ("_system", "_bases", "_kept"):
+    for name in ("_system", "_bases", "_kept"):  # the (key, value) pairs the data classes keep
+        if hasattr(fresh, name):
             setattr(fresh, name, (None, None))
     return fresh
 

@@ -147,6 +147,7 @@ class FitConfig:
     prior: PriorConfig = field(default_factory=PriorConfig)
 
     def __post_init__(self) -> None:
+        """Validate every setting; an invalid one raises InputError."""
         def count(name: str, minimum: int = 0) -> None:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < minimum:
@@ -219,8 +220,9 @@ class FitConfig:
 
     @classmethod
     def from_json(cls, text: str) -> FitConfig:
+        """Read a config from JSON text (as :meth:`to_json` writes it), validated."""
         return cls.from_dict(json.loads(text))
 
     def replace(self, **changes) -> FitConfig:
-        """A copy with some settings changed (validated)."""
+        """Return a copy with some settings changed (validated)."""
         return dataclasses.replace(self, **changes)

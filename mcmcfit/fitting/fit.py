@@ -8,7 +8,10 @@ sampler and its recorder, and the diagnostics. Chains run one after the
 other in this process and share one renderer (whose compiled shading is
 cached per effect set across fits).
 
-This module imports :mod:`albedo_model`, :mod:`proposals` and :mod:`mcmcfit`.
+This module imports :mod:`albedo_model` (errors, model, params, render.renderer),
+:mod:`proposals` (base, light_solver, schedule), the other :mod:`mcmcfit.fitting`
+modules but progress, and :mod:`mcmcfit.sampling`, :mod:`mcmcfit.targets` (face,
+image, landmarks, priors) and :mod:`mcmcfit.proposal_data` (albedo, light).
 """
 
 from __future__ import annotations

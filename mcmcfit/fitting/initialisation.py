@@ -8,7 +8,8 @@ and the translation (``scipy.optimize.least_squares`` with a soft-L1 loss),
 kept only if it lowers the reprojection error. A face box alone gives the
 distance from its size and the translation from its centre (frontal).
 
-This module imports :mod:`albedo_model` and :mod:`mcmcfit.targets.landmarks`.
+This module imports :mod:`albedo_model` (camera, errors, model, params),
+:mod:`mcmcfit.targets.landmarks` and :mod:`mcmcfit.targets.likelihoods`.
 """
 
 from __future__ import annotations

@@ -10,7 +10,8 @@ which keeps walkers from wandering to the back of the head. Moves: differential
 evolution (0.8) and DE snooker (0.2), which mix well for these few
 correlated coordinates. Walkers start in a small ball around the start.
 
-This module imports :mod:`albedo_model.params`, emcee and :mod:`mcmcfit`.
+This module imports :mod:`albedo_model.params`, :mod:`mcmcfit.sampling.chain` and
+:mod:`mcmcfit.sampling.param_vector` (and emcee).
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """A tqdm progress bar for :func:`mcmcfit.fitting.fit.fit` on stderr (stage, chain, steps).
 
-This module imports only tqdm and the standard library.
+This module imports nothing from the project; tqdm is imported when a bar is
+first drawn.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ class FitProgressBar:
         self._key = None
 
     def __call__(self, stage: str, chain: int, done: int, total: int) -> None:
+        """Advance the bar of ``(stage, chain)`` to ``done`` of ``total`` steps."""
         if self.disable:
             return
         from tqdm import tqdm
@@ -61,7 +63,9 @@ class FitProgressBar:
         self._key = None
 
     def __enter__(self) -> FitProgressBar:
+        """Return the callback itself (the bar is closed on exit)."""
         return self
 
     def __exit__(self, *exc) -> None:
+        """Close the current bar; exceptions propagate."""
         self.close()

@@ -1,7 +1,8 @@
 """The result of a fit: chains, best and mean parameters, acceptance, timings, diagnostics.
 
-This module imports :mod:`albedo_model` and :mod:`mcmcfit` (chain, config,
-diagnostics, parameter vectors).
+This module imports :mod:`albedo_model` (errors, params),
+:mod:`mcmcfit.fitting.config` and :mod:`mcmcfit.sampling` (chain, diagnostics,
+param_vector).
 """
 
 from __future__ import annotations
@@ -104,7 +105,7 @@ class FitResult:
     proposal_seconds: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
 
     def records(self, stage: int = 2) -> list[ChainRecord]:
-        """The ChainRecords of one stage (1 or 2), one per chain that ran it."""
+        """Return the ChainRecords of one stage (1 or 2), one per chain that ran it."""
         if stage not in (1, 2):
             raise InputError(f"stage must be 1 or 2, got {stage!r}")
         recs = [c.stage1 if stage == 1 else c.stage2 for c in self.chains]

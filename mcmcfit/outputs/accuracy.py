@@ -1,6 +1,7 @@
 """Scores of a fit against a known truth: pose angle error, albedo RMSE and interval coverage.
 
-This module imports :mod:`albedo_model` and :mod:`mcmcfit` (posterior, parameter vectors).
+This module imports :mod:`albedo_model` (camera, model, params),
+:mod:`mcmcfit.outputs.posterior` and :mod:`mcmcfit.sampling.param_vector`.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from albedo_model.params import Pose
 from mcmcfit.sampling.param_vector import ParamLayout
 from mcmcfit.outputs.posterior import albedo_posterior
 
-__all__ = ["AlbedoScore", "albedo_score", "colour_columns", "interval_error", "pose_error_deg"]
+__all__ = ["AlbedoScore", "albedo_score", "albedo_columns", "interval_error", "pose_error_deg"]
 
 
 def pose_error_deg(pose: Pose, truth: Pose) -> float:
@@ -47,7 +48,7 @@ class AlbedoScore(NamedTuple):
     n_samples: int
 
 
-def colour_columns(layout: ParamLayout) -> slice:
+def albedo_columns(layout: ParamLayout) -> slice:
     """Columns of the albedo coefficients ``albedo.0, albedo.1, ...`` in ``layout``."""
     return layout.slice("albedo")
 
@@ -97,7 +98,7 @@ def albedo_score(model: MorphableModel, samples: np.ndarray, layout: ParamLayout
     level : float
         Central interval probability (0.9: 5 % / 95 %).
     """
-    post = albedo_posterior(model.diffuse, np.asarray(samples)[:, colour_columns(layout)],
+    post = albedo_posterior(model.diffuse, np.asarray(samples)[:, albedo_columns(layout)],
                             level=level)
     err = interval_error(post.mean, post.lo, post.hi, true_diffuse, visible)
     n_samples = int(np.asarray(samples).shape[0])

@@ -4,7 +4,8 @@ The posterior is summarised from the pooled stage-2 samples of the shared
 albedo coefficients after the burn-in (``config.burn_fraction``); a fit without
 an image stage summarises its best sample (zero width).
 
-This module imports :mod:`albedo_model` and :mod:`mcmcfit`.
+This module imports :mod:`albedo_model.model`, :mod:`mcmcfit.fitting.result` and
+:mod:`mcmcfit.outputs.posterior`.
 """
 
 from __future__ import annotations

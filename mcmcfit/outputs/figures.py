@@ -3,7 +3,7 @@
 Figures are drawn with the Agg backend on figure objects (no pyplot state) and
 written as PNG.
 
-This module imports :mod:`mcmcfit` (the fit result) and matplotlib.
+This module imports only :mod:`mcmcfit.fitting.result` (and matplotlib).
 """
 
 from __future__ import annotations

@@ -20,7 +20,10 @@ Files (see the README's "Using it" section):
 ``report.html``                 everything above on one page
 ==============================  ==========================================================
 
-This module imports :mod:`albedo_model` and :mod:`mcmcfit`.
+This module imports :mod:`albedo_model` (io.image_io, io.mesh_export, io.rps,
+render.renderer), :mod:`mcmcfit.fitting.result`, :mod:`mcmcfit.targets.landmarks`
+and the other :mod:`mcmcfit.outputs` modules but accuracy and html_style
+(:mod:`~mcmcfit.outputs.report` when the report is written).
 """
 
 from __future__ import annotations

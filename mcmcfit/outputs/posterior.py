@@ -6,7 +6,7 @@ covariance of the coefficient samples (no per-sample instances needed); the
 credible interval bounds need the samples and are computed in vertex blocks to
 bound memory.
 
-Imports only ``albedo_model``.
+This module imports only :mod:`albedo_model.errors` and :mod:`albedo_model.pca`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """``summary.json`` of a fit: provenance, schedule, timings, acceptance, diagnostics, errors.
 
-This module imports :mod:`mcmcfit` and the standard library.
+This module imports only :mod:`mcmcfit.fitting.result` (and numpy, the standard library).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ SUMMARY_FORMAT = "mcmcfit-fit-summary/1"
 
 
 def _mcmcfit_version() -> str:
-    """The installed mcmcfit version (as ``mcmcfit.__version__``, read without importing the facade)."""
+    """Return the installed mcmcfit version (``mcmcfit.__version__``, without the facade)."""
     try:
         return version("mcmcfit")
     except PackageNotFoundError:  # running from a source tree without install
@@ -71,7 +71,7 @@ def _stage_diag(result: FitResult) -> dict:
 def build_summary(result: FitResult, *, model_sha256: str, model_uri: str, inputs: dict,
                   landmark_err: dict | None, albedo: dict, files: list[str],
                   truth_error: dict | None = None, extra_timings: dict | None = None) -> dict:
-    """The ``summary.json`` dict (JSON-safe: NaN and infinities become null).
+    """Build the ``summary.json`` dict (JSON-safe: NaN and infinities become null).
 
     Fields: ``format``, ``software`` (versions), ``version`` (mcmcfit), ``seed``,
     ``model_sha256``, ``model_uri``, ``inputs``, ``steps`` (``landmark``,
@@ -126,7 +126,7 @@ def build_summary(result: FitResult, *, model_sha256: str, model_uri: str, input
 
 
 def json_safe(value):
-    """A copy with NumPy scalars as Python numbers and non-finite floats as None."""
+    """Return a copy with NumPy scalars as Python numbers and non-finite floats as None."""
     if isinstance(value, dict):
         return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):

@@ -5,7 +5,7 @@ barycentric weights (:class:`albedo_model.shading.interpolation.PixelHits`). Any
 per-vertex quantity (posterior mean albedo, its standard deviation) is then a
 picture of that view by the same interpolation the renderer applies to albedo.
 
-This module imports only :mod:`albedo_model`.
+This module imports only :mod:`albedo_model.model` and :mod:`albedo_model.params`.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def vertex_image(state, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def frontal_params(params: RenderParameter, model: MorphableModel, *,
                    size: tuple[int, int] | None = None, margin: float = 0.22) -> RenderParameter:
-    """A frontal view of the instance in ``params``, framing the face.
+    """Return a frontal view of the instance in ``params``, framing the face.
 
     The instance (shape and expression coefficients of ``params``) faces the
     camera (zero rotation) under the default camera fitted to ``size`` (default:

@@ -4,7 +4,9 @@
 coefficients (the albedo conditional's system); :mod:`~mcmcfit.proposal_data.light`
 gathers normals, albedo and target colours for the SH light solve. Both are
 functions of the proposal's explicit input (the accepted state and its render),
-cached on the versions of the parameter blocks they read.
+cached on the versions of the parameter blocks they read; both read the face
+pixels of the render through :mod:`~mcmcfit.proposal_data.face_pixels`.
 
-Imports :mod:`albedo_model` and :mod:`proposals` only.
+The package imports only :mod:`albedo_model` (camera, errors, params, render,
+shading.effects) and :mod:`proposals` (albedo_solver, base). This file imports nothing.
 """

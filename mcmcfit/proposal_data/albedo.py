@@ -16,8 +16,8 @@ albedo coefficients: the system is kept while the version stamps of the
 blocks of ``STAGE_DEPS["albedo_system"]`` are (the face pixels' bases while
 those of ``"albedo_bases"`` are; :mod:`albedo_model.render.cache_table`).
 
-This module imports :mod:`albedo_model` (render, shading effects, params),
-:mod:`proposals.albedo_solver` and :mod:`mcmcfit.proposal_data.face_pixels`.
+This module imports :mod:`albedo_model` (errors, params, render, shading.effects),
+:mod:`proposals` (albedo_solver, base) and :mod:`mcmcfit.proposal_data.face_pixels`.
 """
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ class RenderAlbedoData:
 
     @staticmethod
     def _colour(p: RenderParameter, effects: Effects) -> tuple[np.ndarray, np.ndarray]:
-        """The colour transform as ``c' = M c + off`` (float32; identity when off)."""
+        """Return the colour transform as ``c' = M c + off`` (float32; identity when off)."""
         if not effects.color_transform:
             return np.eye(3, dtype=np.float32), np.zeros(3, np.float32)
         ct = p.color_transform

@@ -7,7 +7,7 @@ the ray-cast hits' triangle corners. Target pixels at or above
 camera clipped them.
 
 This module imports :mod:`albedo_model.errors` and :mod:`proposals.albedo_solver`
-(the saturation limit).
+(the saturation limit), and :mod:`albedo_model.render.raycast` for type checking only.
 """
 
 from __future__ import annotations

@@ -13,8 +13,8 @@ kept), never of the light: the solver's mean is the same for the forward and
 the backward move and its transition ratio is exact. Saturated target pixels
 are skipped.
 
-This module imports :mod:`albedo_model` (camera, params, render, shading
-effects), :mod:`proposals.base` and :mod:`mcmcfit.proposal_data.face_pixels`.
+This module imports :mod:`albedo_model` (camera, errors, params, render,
+shading.effects), :mod:`proposals.base` and :mod:`mcmcfit.proposal_data.face_pixels`.
 """
 
 from __future__ import annotations

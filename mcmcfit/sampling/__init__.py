@@ -12,5 +12,6 @@ param_vector
 diagnostics
     Autocorrelation time, ESS and split R-hat.
 
-Imports :mod:`albedo_model` and :mod:`proposals` only.
+The package imports only :mod:`albedo_model` (errors, params, io.atomic, io.rps,
+render.cache_table) and :mod:`proposals.base`. This file imports nothing.
 """

@@ -15,8 +15,8 @@ A :class:`ChainRecorder` is the sampler's callback; it fills a
 :func:`write_chains_h5` writes records with ``emcee``'s vocabulary in mind
 (``get_chain``-style arrays: samples (n, d) per chain and stage).
 
-This module imports :mod:`albedo_model` (params, rps I/O, atomic writes) and
-:mod:`mcmcfit.sampling.kernel`, :mod:`mcmcfit.sampling.param_vector`.
+This module imports :mod:`albedo_model` (errors, params, io.rps, io.atomic),
+:mod:`mcmcfit.sampling.kernel` and :mod:`mcmcfit.sampling.param_vector`.
 """
 
 from __future__ import annotations
@@ -63,6 +63,7 @@ class BestSample(NamedTuple):
 
     @property
     def log_posterior(self) -> float:
+        """Unnormalised log posterior: log prior plus both log likelihoods."""
         return self.log_prior + self.log_lik_lm + self.log_lik_img
 
 
@@ -260,7 +261,7 @@ class ChainRecorder:
         self.steps_done = i + 1
 
     def record(self, seconds: float = 0.0) -> ChainRecord:
-        """The record of the steps done so far."""
+        """Return the record of the steps done so far."""
         n, k = self.steps_done, self._k
         return ChainRecord(
             self.stage, "mh", self.thin, n, self.layout, self._sample_step[:k].copy(),

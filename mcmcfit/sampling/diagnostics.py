@@ -10,7 +10,8 @@ Split R-hat (Gelman et al., BDA3 §11.4): every chain is split in halves, and
 ``var_plus = (n - 1)/n W + B/n`` (B the between-half variance of the means).
 Values near 1 mean the chains agree; > 1.1 is the usual alarm.
 
-This module imports only numpy and emcee (and :mod:`mcmcfit.sampling.chain` for records).
+This module imports only :mod:`mcmcfit.sampling.chain` (for records) from the
+project, besides numpy and emcee.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ class AutocorrEstimate(NamedTuple):
 
 
 def integrated_time(x: np.ndarray, *, c: float = 5.0, tol: float = 50.0) -> AutocorrEstimate:
-    """emcee's integrated autocorrelation time of a 1-D series.
+    """Estimate emcee's integrated autocorrelation time of a 1-D series.
 
     Parameters
     ----------

@@ -136,11 +136,11 @@ class Target(Protocol):
         ...
 
     def init_render(self, params: RenderParameter) -> Any:
-        """A full render state for ``params``; it becomes the accepted one."""
+        """Return a full render state for ``params``; it becomes the accepted one."""
         ...
 
     def render(self, render_state: Any, params: RenderParameter, touched: Block) -> Any:
-        """A candidate render state for ``params`` from the accepted one."""
+        """Return a candidate render state for ``params`` from the accepted one."""
         ...
 
     def log_lik_image(self, render_state: Any) -> float:
@@ -168,7 +168,7 @@ def _accept(rng: np.random.Generator, log_alpha: float) -> bool:
 
 
 def init(params: RenderParameter, target: Target, *, image: bool = True) -> ChainState:
-    """The chain state of ``params``: evaluates every factor (and renders when ``image``)."""
+    """Return the chain state of ``params``: evaluate every factor (render when ``image``)."""
     lp = float(target.log_prior(params))
     lm = float(target.log_lik_landmarks(params))
     if not image:

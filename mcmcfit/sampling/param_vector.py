@@ -20,7 +20,7 @@ Fields that are never sampled (view, image size, sensor, near/far,
 orthographic flag, directional light, model URI) come from a template when
 a vector is turned back into parameters.
 
-This module imports only :mod:`albedo_model` and numpy.
+This module imports only :mod:`albedo_model.errors` and :mod:`albedo_model.params`.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ class ParamLayout:
 
     @classmethod
     def for_params(cls, params: RenderParameter) -> ParamLayout:
-        """The layout of ``params``' block sizes."""
+        """Return the layout of ``params``' block sizes."""
         m = params.momo
         return cls(int(np.asarray(params.environment_map.coefficients).shape[0]),
                    len(m.shape), len(m.albedo), len(m.expression))
@@ -76,6 +76,7 @@ class ParamLayout:
 
     @property
     def size(self) -> int:
+        """Number of columns (``len(names)``)."""
         return 7 + 3 + 3 * self.n_light + 7 + 1 + self.n_shape + self.n_albedo + self.n_expression
 
     def index(self, name: str) -> int:

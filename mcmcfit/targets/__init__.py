@@ -16,5 +16,6 @@ face
     :class:`~mcmcfit.targets.face.FaceTarget`: renderer + likelihoods + prior, the
     sampler's target.
 
-Imports :mod:`albedo_model`, :mod:`proposals` and :mod:`mcmcfit.sampling`.
+The package imports only :mod:`albedo_model` (camera, errors, model, params,
+render.raycast, render.renderer, shading.image_formation). This file imports nothing.
 """

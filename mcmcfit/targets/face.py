@@ -8,8 +8,8 @@ likelihood on the parameters, and the prior. It holds no chain state: the
 accepted render lives in the sampler's :class:`~mcmcfit.sampling.kernel.ChainState`
 (and reaches the data-driven proposals through it).
 
-This module imports :mod:`albedo_model.render`, :mod:`mcmcfit.targets.image` and
-:mod:`mcmcfit.targets.priors`.
+This module imports :mod:`albedo_model.params`, :mod:`albedo_model.render.renderer`,
+:mod:`mcmcfit.targets.image` and :mod:`mcmcfit.targets.priors`.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ class LandmarkFactor(Protocol):
     """Anything with ``log_lik(params) -> float`` (landmarks or a face box)."""
 
     def log_lik(self, params: RenderParameter) -> float:
+        """Return the log likelihood of ``params``."""
         ...
 
 
@@ -57,9 +58,11 @@ class FaceTarget:
             self._fused = renderer.compose(image_likelihood.pixel_set_fn, pixel_set=True)
 
     def log_prior(self, params: RenderParameter) -> float:
+        """Return the log prior of ``params``."""
         return self.prior(params)
 
     def log_lik_landmarks(self, params: RenderParameter) -> float:
+        """Return the landmark (or face-box) log likelihood of ``params``; 0 without one."""
         return 0.0 if self.landmarks is None else float(self.landmarks.log_lik(params))
 
     def init_render(self, params: RenderParameter) -> RenderState:
@@ -68,9 +71,11 @@ class FaceTarget:
 
     def render(self, render_state: RenderState, params: RenderParameter,
                touched: Block) -> RenderState:
+        """Render ``params`` from ``render_state``, recomputing what ``touched`` makes stale."""
         return self.renderer.update(render_state, params, touched)
 
     def log_lik_image(self, render_state: RenderState) -> float:
+        """Return the image log likelihood of a render state; 0 without an image likelihood."""
         lik = self.image_likelihood
         if lik is None:
             return 0.0
@@ -83,4 +88,5 @@ class FaceTarget:
         return self.renderer.accept(render_state)
 
     def reject(self, render_state: RenderState) -> None:
+        """Drop a candidate render: the renderer keeps its accepted geometry."""
         self.renderer.reject()

@@ -20,8 +20,8 @@ the same noisy colour as the foreground, which never exceeds its peak
 (:meth:`~mcmcfit.targets.background.ColourHistogram.smoothed_log_density`); fits
 use it by default (:attr:`mcmcfit.fitting.config.FitConfig.background`).
 
-This module imports :mod:`albedo_model` and :mod:`mcmcfit.targets.likelihoods`,
-:mod:`mcmcfit.targets.background`.
+This module imports :mod:`albedo_model.errors`, :mod:`albedo_model.shading.image_formation`,
+:mod:`mcmcfit.targets.background` and :mod:`mcmcfit.targets.likelihoods`.
 """
 
 from __future__ import annotations
@@ -96,10 +96,12 @@ class ImageTarget:
 
     @property
     def height(self) -> int:
+        """Image height H in pixels."""
         return int(self.linear.shape[0])
 
     @property
     def width(self) -> int:
+        """Image width W in pixels."""
         return int(self.linear.shape[1])
 
 
@@ -144,8 +146,10 @@ _DEVICE_FUNCTIONS = {"independent": independent_terms, "collective": collective_
 
 
 def _on_pixel_set(terms):
-    """``terms`` with the pixel set as third argument, as ``Renderer.compose(pixel_set=True)``
-    calls it."""
+    """Wrap ``terms`` to take the pixel set as third argument.
+
+    That is how ``Renderer.compose(pixel_set=True)`` calls it.
+    """
     def on_set(rgb, mask, pixels, *args):
         return terms(rgb, mask, *args, pixels=pixels)
     on_set.__name__ = f"{terms.__name__}_on_pixel_set"
@@ -194,6 +198,7 @@ class ImageLikelihood:
     _args: tuple = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        """Validate the settings and prepare the jitted terms and their device arguments."""
         if self.kind not in IMAGE_LIKELIHOODS:
             raise InputError(f"image likelihood must be one of {IMAGE_LIKELIHOODS}, "
                              f"got {self.kind!r}")
@@ -221,13 +226,15 @@ class ImageLikelihood:
 
     @property
     def pixel_set_fn(self):
-        """:attr:`device_fn` as ``fn(rgb, mask, pixels, *device_args())`` on a renderer's
-        pixel set (:meth:`albedo_model.render.renderer.Renderer.compose` with ``pixel_set=True``:
-        the per-pixel work follows the face's size, not the image's)."""
+        """:attr:`device_fn` on a renderer's pixel set: ``fn(rgb, mask, pixels, *device_args())``.
+
+        For :meth:`albedo_model.render.renderer.Renderer.compose` with ``pixel_set=True``:
+        the per-pixel work follows the face's size, not the image's.
+        """
         return _PIXEL_SET_FUNCTIONS[self.kind]
 
     def device_args(self) -> tuple:
-        """The arguments after ``(rgb, mask)`` of :attr:`device_fn`."""
+        """Return the arguments after ``(rgb, mask)`` of :attr:`device_fn`."""
         return self._args
 
     def terms(self, rgb, mask):

@@ -23,7 +23,8 @@ a negative log density) nor leaves a plateau of "everything hidden" states
 :func:`mcmcfit.targets.likelihoods.landmark_log_lik`. Landmarks projecting outside the
 image keep the Gaussian term.
 
-This module imports :mod:`albedo_model` and :mod:`mcmcfit.targets.likelihoods`.
+This module imports :mod:`albedo_model` (camera, errors, model, params,
+render.raycast) and :mod:`mcmcfit.targets.likelihoods`.
 """
 
 from __future__ import annotations
@@ -214,6 +215,7 @@ class FaceBoxTarget:
         self.scale_log_sigma, self.centre_sigma = float(scale_log_sigma), float(centre_sigma)
 
     def log_lik(self, params: RenderParameter) -> float:
+        """Return the face-box log likelihood of ``params`` (-inf: a landmark behind the eye)."""
         pts = self.geometry.points(self.names, params)
         px, depth = project(pts, params.pose, params.view, params.camera, params.image_size)
         if not (np.all(np.isfinite(px)) and np.all(depth > 0)):

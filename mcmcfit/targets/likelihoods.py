@@ -84,7 +84,7 @@ class ImageArrays(NamedTuple):
 
 
 def _at(image, pixels):
-    """An (H, W) target array at the pixels (row-major indices), or all of it when None."""
+    """Return an (H, W) target array at the pixels (row-major indices), or all when None."""
     flat = image.reshape(-1)
     return flat if pixels is None else flat[pixels]
 
@@ -135,8 +135,10 @@ def finish_independent(rows, counts, sigma: float) -> float:
 
 
 def collective_terms(rgb, mask, target: ImageArrays, pixels=None):
-    """Row sums of ``||I - R||^2`` over face pixels, and face-pixel counts per row
-    (``pixels`` and the rows as in :func:`independent_terms`)."""
+    """Compute row sums of ``||I - R||^2`` over face pixels, and face-pixel counts per row.
+
+    ``pixels`` and the rows are as in :func:`independent_terms`.
+    """
     w = target.bg.shape[1]
     m = mask.reshape(-1, w)
     return (jnp.sum(jnp.where(m, _sq_dist(rgb, target, pixels).reshape(-1, w), 0.0), axis=1),
@@ -144,7 +146,7 @@ def collective_terms(rgb, mask, target: ImageArrays, pixels=None):
 
 
 def finish_collective(rows, counts, sigma: float, relative_variance: float) -> float:
-    """Collective (central-limit) likelihood of the mean squared colour distance.
+    """Evaluate the collective (central-limit) likelihood of the mean squared colour distance.
 
     With ``m = sum ||I - R||^2 / (sigma^2 N)`` over the N face pixels and
     ``z = (m - 1) / sqrt(r / N)``, the value is ``-1/2 log 2 pi - z^2 / 2``
@@ -167,8 +169,9 @@ def finish_collective(rows, counts, sigma: float, relative_variance: float) -> f
 
 
 def trimmed_terms(rgb, mask, target: ImageArrays, sigma, pixels=None):
-    """Per-pixel terms for the trimmed likelihood: ``(values (P,) float32, mask (P,))``
-    (``pixels`` as in :func:`independent_terms`).
+    """Compute the per-pixel terms of the trimmed likelihood: ``(values, mask)``, both (P,).
+
+    ``values`` is float32; ``pixels`` is as in :func:`independent_terms`.
 
     ``values = -||I - R||^2 / (2 sigma^2) - bg(I)`` (without the constant); the
     selection of the best pixels happens on the host (:func:`finish_trimmed`),

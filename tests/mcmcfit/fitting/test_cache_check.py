@@ -36,7 +36,7 @@ def test_check_cache_passes_over_every_move_kind(case):
     kinds = set(res.acceptance)
     for kind in ("yaw", "pitch", "roll", "distance", "focal", "translation", "shape",
                  "expression", "albedo", "albedo-caricature", "albedo-conditional",
-                 "light-albedo", "colour", "sh-spatial", "sh-bands", "sh-intensity",
+                 "light-albedo", "color-transform", "sh-spatial", "sh-bands", "sh-intensity",
                  "sh-perturb", "sh-colour", "sh-solver", "specular-exponent"):
         assert any(k.startswith(kind) for k in kinds), (kind, sorted(kinds))
     names = rec.proposal_names
@@ -57,7 +57,7 @@ _PREFIX_BLOCKS = (
     ("translation", Block.POSE), ("focal", Block.CAMERA),
     ("shape", Block.SHAPE), ("expression", Block.EXPRESSION),
     ("light-albedo", Block.LIGHT | Block.ALBEDO), ("albedo", Block.ALBEDO),
-    ("colour", Block.COLOR_TRANSFORM), ("sh-", Block.LIGHT),
+    ("color-transform", Block.COLOR_TRANSFORM), ("sh-", Block.LIGHT),
     ("specular-exponent", Block.SPECULAR_EXPONENT),
 )
 

@@ -9,7 +9,7 @@ import pytest
 
 from albedo_model.io.model_files import load_model
 from mcmcfit.fitting.fit import fit
-from mcmcfit.outputs.accuracy import colour_columns
+from mcmcfit.outputs.accuracy import albedo_columns
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.outputs.posterior import albedo_posterior
 from mcmcfit.jobs.synthetic_case import synthetic_case
@@ -48,5 +48,5 @@ def test_hard_case_runs_to_completion(default_model, name):
     assert math.isfinite(res.best.log_lik_img) and math.isfinite(res.best_posterior.log_posterior)
     assert _finite_params(res.best.params) and _finite_params(res.mean_params)
     post = albedo_posterior(default_model.diffuse,
-                            res.get_chain(2, flat=True)[:, colour_columns(res.layout)])
+                            res.get_chain(2, flat=True)[:, albedo_columns(res.layout)])
     assert all(np.all(np.isfinite(a)) for a in (post.mean, post.std, post.lo, post.hi))
