@@ -15,7 +15,7 @@ from pathlib import Path
 
 from albedo_model.errors import InputError
 
-__all__ = ["BUILD_VERSION", "cache_dir", "default_model_path"]
+__all__ = ["BUILD_VERSION", "cache_dir", "cached_model_path", "default_model_path"]
 
 #: Bumped whenever the file layout of the default model changes.
 BUILD_VERSION = 1
@@ -31,28 +31,36 @@ def cache_dir() -> Path:
     return Path(base) / "mcmcfit"
 
 
-def default_model_path(fingerprint: str | None = None, *, must_exist: bool = True) -> Path:
-    """Return the cached default model file.
+def cached_model_path(prefix: str, spec: str, fingerprint: str | None = None, *,
+                      must_exist: bool = True) -> Path:
+    """Return the cached file of a built-in model (``<prefix><fingerprint>.h5`` in :func:`cache_dir`).
 
     Parameters
     ----------
+    prefix : str
+        File-name prefix of that built-in model.
+    spec : str
+        Its name on the command line (for the error).
     fingerprint : str, optional
         Identifies the builder's code and settings (``pipeline`` computes it), so
         that a changed builder never serves a stale cache. Without it, the most
-        recently built default model in the cache is returned.
+        recently built file with ``prefix`` is returned.
     must_exist : bool
         Raise :class:`InputError` when no such file has been built yet (the
         ``mcmcfit`` commands build it on first use).
     """
     folder = cache_dir()
     if fingerprint is not None:
-        path = folder / f"{_PREFIX}{fingerprint}.h5"
+        path = folder / f"{prefix}{fingerprint}.h5"
     else:
-        built = sorted(folder.glob(f"{_PREFIX}*.h5"), key=lambda p: p.stat().st_mtime)
-        path = built[-1] if built else folder / f"{_PREFIX}unbuilt.h5"
+        built = sorted(folder.glob(f"{prefix}*.h5"), key=lambda p: p.stat().st_mtime)
+        path = built[-1] if built else folder / f"{prefix}unbuilt.h5"
     if must_exist and not path.is_file():
-        raise InputError(
-            f"{path}: the built-in default model has not been built yet "
-            "(any `mcmcfit ... default` command builds it)"
-        )
+        raise InputError(f"{path}: the built-in {spec} model has not been built yet "
+                         f"(any `mcmcfit ... {spec}` command builds it)")
     return path
+
+
+def default_model_path(fingerprint: str | None = None, *, must_exist: bool = True) -> Path:
+    """Return the cached default model file (see :func:`cached_model_path`)."""
+    return cached_model_path(_PREFIX, "default", fingerprint, must_exist=must_exist)

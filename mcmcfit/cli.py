@@ -21,7 +21,8 @@ from albedo_model.errors import AlbedoModelError
 __all__ = ["main", "build_parser"]
 
 #: Command modules under ``mcmcfit.commands``, in help order.
-COMMAND_MODULES = ("model", "params", "render", "fit", "demo", "pipeline", "batch", "bench")
+COMMAND_MODULES = ("model", "params", "render", "landmarks", "fit", "demo", "pipeline", "batch",
+                   "bench")
 
 
 def build_parser() -> argparse.ArgumentParser:

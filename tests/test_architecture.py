@@ -71,7 +71,7 @@ LAYERS: dict[str, list[list[str]]] = {
         ["pipeline.synthetic"],
     ],
     "mcmcfit": [
-        ["mcmcfit.sampling"],
+        ["mcmcfit.sampling", "mcmcfit.detection"],
         ["mcmcfit.targets", "mcmcfit.proposal_data"],
         ["mcmcfit.fitting"],
         ["mcmcfit.outputs"],

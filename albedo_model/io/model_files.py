@@ -4,8 +4,10 @@
 ``/color`` (scalismo MoMo, BFM 2017) or with ``/diffuseAlbedo`` +
 ``/specularAlbedo`` (AlbedoMM joint model). Albedo-part files and the FLAME
 npz are recognised and refused with a message saying what to do instead.
-``"default"`` names the built-in model, resolved lazily through
-``albedo_model.default_model.default_model_path()``.
+``"default"`` names the built-in model (a whole head), resolved lazily through
+``albedo_model.default_model.default_model_path()``; ``"default-face"`` names its
+face crop (no scalp, ears or neck; see :mod:`pipeline.synthetic.default_face_model`),
+cached beside it and located by :func:`default_face_model_path`.
 
 This module imports only :mod:`albedo_model.default_model`, :mod:`albedo_model.errors`,
 :mod:`albedo_model.model` and :mod:`albedo_model.io.momo_h5`.
@@ -20,7 +22,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from albedo_model.default_model import default_model_path
+from albedo_model.default_model import BUILD_VERSION, cached_model_path, default_model_path
 from albedo_model.errors import FormatError, InputError
 from albedo_model.io.momo_h5 import (
     AlbedoPart,
@@ -33,12 +35,39 @@ from albedo_model.io.momo_h5 import (
 from albedo_model.model import MorphableModel
 
 __all__ = [
-    "DEFAULT_MODEL", "file_sha256", "resolve_model_path", "model_file_kind", "load_model",
-    "combine_shape_albedo", "combine_model_files",
+    "BUILTIN_MODELS",
+    "DEFAULT_FACE_MODEL",
+    "DEFAULT_MODEL",
+    "combine_model_files",
+    "combine_shape_albedo",
+    "default_face_model_path",
+    "file_sha256",
+    "load_model",
+    "model_file_kind",
+    "resolve_model_path",
 ]
 
 #: The spelling of the built-in model on the command line.
 DEFAULT_MODEL = "default"
+#: The spelling of the built-in model's face crop on the command line.
+DEFAULT_FACE_MODEL = "default-face"
+#: Model specs that name a built-in (cached, built on first use) model rather than a file.
+BUILTIN_MODELS = (DEFAULT_MODEL, DEFAULT_FACE_MODEL)
+_FACE_PREFIX = f"default-face-albedo-model-v{BUILD_VERSION}-"
+
+
+def default_face_model_path(fingerprint: str | None = None, *, must_exist: bool = True) -> Path:
+    """Return the cached face crop of the default model (``"default-face"``).
+
+    Parameters
+    ----------
+    fingerprint : str, optional
+        Identifies the default model and the crop's code (``pipeline`` computes
+        it). Without it, the most recently built face crop in the cache.
+    must_exist : bool
+        Raise :class:`InputError` when no such file has been built yet.
+    """
+    return cached_model_path(_FACE_PREFIX, DEFAULT_FACE_MODEL, fingerprint, must_exist=must_exist)
 
 
 def file_sha256(path: str | os.PathLike) -> str:
@@ -51,7 +80,7 @@ def file_sha256(path: str | os.PathLike) -> str:
 
 
 def resolve_model_path(spec: str | os.PathLike) -> Path:
-    """Return the model file named by ``spec``: a path, or ``"default"`` (the built-in model).
+    """Return the model file named by ``spec``: a path, ``"default"`` or ``"default-face"``.
 
     Raises
     ------
@@ -61,6 +90,8 @@ def resolve_model_path(spec: str | os.PathLike) -> Path:
     """
     if isinstance(spec, str) and spec == DEFAULT_MODEL:
         path = default_model_path()
+    elif isinstance(spec, str) and spec == DEFAULT_FACE_MODEL:
+        path = default_face_model_path()
     else:
         path = Path(spec).expanduser()
     if not path.is_file():
@@ -92,11 +123,11 @@ def model_file_kind(path: str | os.PathLike) -> str:
 
 
 def load_model(path_or_spec: str | os.PathLike) -> MorphableModel:
-    """Load a complete morphable model (MoMo or AlbedoMM joint file, or ``"default"``).
+    """Load a complete morphable model (MoMo or AlbedoMM joint file, or a built-in model).
 
     Parameters
     ----------
-    path_or_spec : path-like or "default"
+    path_or_spec : path-like, "default" or "default-face"
 
     Returns
     -------

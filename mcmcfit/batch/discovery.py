@@ -227,7 +227,7 @@ def discover(input_path: str | os.PathLike, *, exclude: list[Path] | None = None
             continue
         if landmarks is None and not allow_face_box:
             skipped.append(Skipped(source, str(rel),
-                                   f"{why}; pass --face-box-default to fit it with a face box"))
+                                   f"{why}; pass --detect-landmarks or --face-box-default"))
             continue
         items.append(BatchItem(image, source, rel, landmarks))
     return items, skipped

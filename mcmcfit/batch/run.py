@@ -24,6 +24,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from albedo_model.io.model_files import BUILTIN_MODELS
 from mcmcfit.batch.discovery import BatchItem, Skipped, discover
 from mcmcfit.batch.journal import BATCH_JOURNAL, FAILURES_JOURNAL, append_line, read_journal
 from mcmcfit.batch.out_paths import is_complete, remove_stale_temp_dirs, result_dir
@@ -73,7 +74,7 @@ class BatchOptions:
 
     input: Path
     out: Path
-    model: str = "default"
+    model: str = "default-face"
     config: FitConfig = field(default_factory=FitConfig)
     seed: int = 0
     landmarks_dir: Path | None = None
@@ -118,8 +119,8 @@ def _now() -> str:
 
 
 def _model_spec(spec: str) -> str:
-    if str(spec) == "default":
-        return "default"
+    if str(spec) in BUILTIN_MODELS:  # built-in names, resolved by each worker
+        return str(spec)
     return os.path.abspath(spec)
 
 

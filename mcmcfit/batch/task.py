@@ -26,10 +26,12 @@ from mcmcfit.batch.face_boxes import lfw_face_box
 from mcmcfit.batch.records import finished_record
 from mcmcfit.batch.worker_env import apply_thread_env, thread_env
 
-__all__ = ["FitTask", "run_task", "LFW_BOX"]
+__all__ = ["DETECT", "FitTask", "run_task", "LFW_BOX"]
 
 #: ``FitTask.face_box`` value meaning "the LFW default box scaled to the image".
 LFW_BOX = "lfw"
+#: ``FitTask.face_box`` value meaning "detect the landmarks" (``batch --detect-landmarks``).
+DETECT = "detect"
 
 
 @dataclass(frozen=True)
@@ -49,7 +51,8 @@ class FitTask:
     landmarks : str or None
         Landmark file; None fits with ``face_box``.
     face_box : str or None
-        ``"lfw"`` (:func:`mcmcfit.batch.face_boxes.lfw_face_box`), ``"x,y,w,h"``, or None.
+        ``"lfw"`` (:func:`mcmcfit.batch.face_boxes.lfw_face_box`), ``"x,y,w,h"``,
+        ``"detect"`` (detect the landmarks, :data:`DETECT`), or None.
     model : str
         Model file path (or ``"default"``).
     config : dict
@@ -90,7 +93,7 @@ def _image_size(path: str) -> tuple[int, int] | None:
 
 
 def _face_box_xywh(task: FitTask):
-    if task.landmarks is not None or task.face_box is None:
+    if task.landmarks is not None or task.face_box in (None, DETECT):
         return None
     if task.face_box != LFW_BOX:
         return task.face_box
@@ -137,7 +140,8 @@ def run_task(task: FitTask) -> dict:
             summary = run_fit_job(task.image, task.out_dir, landmarks_path=task.landmarks,
                                   face_box=_face_box_xywh(task), model=task.model,
                                   config=FitConfig.from_dict(task.config), seed=task.seed,
-                                  force=task.force)
+                                  force=task.force,
+                                  detect=task.landmarks is None and task.face_box == DETECT)
     except Exception as exc:  # any failure of one image is recorded, the batch goes on
         return {**base, "status": "failed", "seconds": time.perf_counter() - t0,
                 "reason": _reason(exc), "error_type": type(exc).__name__}

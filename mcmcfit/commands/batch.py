@@ -24,7 +24,9 @@ Landmarks: beside each image (<stem>.tlms, then <stem>.pts), or under
 --landmarks-dir (a tree parallel to INPUT), or --landmarks-glob (placeholders
 {stem} {name} {rel} {parent}, relative to the image's folder). Images without
 landmarks are skipped (recorded in OUT/failures.jsonl with the reason) unless
---face-box-default is given: then they are fitted with LFW's face box, the
+--detect-landmarks is given (MediaPipe Face Mesh, the optional extra
+mcmcfit[landmarks]; the detected points are written into each result folder),
+or --face-box-default: then they are fitted with LFW's face box, the
 central square of side 1/2.2 of the image ((68.2, 68.2)-(181.8, 181.8) in a
 250x250 LFW crop: LFW enlarged the detected face 2.2x before cropping), or
 with --face-box x,y,w,h.
@@ -65,11 +67,16 @@ def register(subparsers) -> None:
     lm.add_argument("--landmarks-glob", metavar="PATTERN",
                     help="landmark file pattern, e.g. '../landmarks/{stem}*.pts'")
     box = p.add_mutually_exclusive_group()
+    box.add_argument("--detect-landmarks", action="store_true",
+                     help="detect the landmarks of images without landmark files "
+                     "(needs mcmcfit[landmarks])")
     box.add_argument("--face-box-default", action="store_true",
                      help="fit images without landmarks with the LFW face box (see above)")
     box.add_argument("--face-box", metavar="X,Y,W,H",
                      help="fit images without landmarks with this face box (pixels)")
-    p.add_argument("--model", default="default", help="model file (.h5) or 'default'")
+    p.add_argument("--model", default="default-face",
+                   help="model file (.h5), 'default-face' (default: the face-only crop of the "
+                   "built-in model) or 'default' (the whole head)")
     p.add_argument("--workers", type=_positive, metavar="N",
                    help="worker processes (default: the usable cores)")
     p.add_argument("--threads-per-worker", type=_positive, metavar="T",
@@ -124,7 +131,14 @@ def run_batch_command(args: argparse.Namespace) -> int:
     if args.scheduler and args.dask:
         raise InputError("give either --scheduler (a running cluster) or --dask (a local one)")
     face_box = None
-    if args.face_box_default:
+    if args.detect_landmarks:
+        from mcmcfit.batch.task import DETECT
+        from mcmcfit.detection.face_mesh import INSTALL_HINT, available
+
+        if not available():  # one clear error, not one failure per image
+            raise InputError(INSTALL_HINT)
+        face_box = DETECT
+    elif args.face_box_default:
         face_box = LFW_BOX
     elif args.face_box:
         from mcmcfit.jobs.fit_job import parse_face_box

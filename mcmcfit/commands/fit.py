@@ -102,10 +102,15 @@ def register(subparsers) -> None:
     )
     p.add_argument("image", help="photograph (PNG or JPEG, sRGB)")
     p.add_argument("--landmarks", metavar="F.tlms|F.pts",
-                   help="2-D landmarks: TLMS (Basel names) or iBUG 68-point .pts")
+                   help="2-D landmarks: TLMS (Basel names) or iBUG 68-point .pts (default: "
+                   "detected with MediaPipe Face Mesh, the optional extra mcmcfit[landmarks])")
     p.add_argument("--face-box", metavar="x,y,w,h",
-                   help="face box in pixels, used when there are no landmarks")
-    p.add_argument("--model", default="default", help="model file (.h5) or 'default'")
+                   help="face box in pixels, used instead of landmarks")
+    p.add_argument("--face", type=int, default=None, metavar="N",
+                   help="with detected landmarks: which face, by size (0: the largest)")
+    p.add_argument("--model", default="default-face",
+                   help="model file (.h5), 'default-face' (default: the face-only crop of the "
+                   "built-in model) or 'default' (the whole head)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="result folder to create")
     add_schedule_arguments(p)
     p.set_defaults(func=run)
@@ -122,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
         summary = run_fit_job(args.image, out, landmarks_path=args.landmarks,
                               face_box=args.face_box, model=args.model, config=cfg,
                               seed=args.seed, progress=bar, force=args.force,
-                              model_progress=not args.quiet)
+                              model_progress=not args.quiet, face=args.face)
     print(_done_line(out, summary))
     return 0
 

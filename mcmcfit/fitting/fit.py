@@ -41,7 +41,9 @@ from mcmcfit.targets.image import ImageLikelihood, prepare_image_target
 from mcmcfit.targets.landmarks import FaceBoxTarget, LandmarkGeometry, LandmarkTarget
 from mcmcfit.proposal_data.light import RenderLightData
 from mcmcfit.sampling.param_vector import ParamLayout
-from mcmcfit.fitting.initialisation import initial_params, pose_from_face_box, pose_from_landmarks
+from mcmcfit.fitting.initialisation import (
+    check_fit_inputs, initial_params, pose_from_face_box, pose_from_landmarks,
+)
 from mcmcfit.targets.priors import LogPrior
 from mcmcfit.sampling.kernel import init, run
 from mcmcfit.fitting.landmark_stage_emcee import run_emcee_stage
@@ -120,7 +122,7 @@ def _best(samples: list[BestSample], key) -> BestSample:
 
 def fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConfig | None = None,
         seed: int = 0, progress: Progress | None = None, face_box=None,
-        model_uri: str = "") -> FitResult:
+        model_uri: str = "", landmark_sigma=None) -> FitResult:
     """Fit ``model`` to one photograph.
 
     Parameters
@@ -139,6 +141,10 @@ def fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConfi
         Used for the pose guess and the landmark stage when ``landmarks`` is None.
     model_uri : str
         Written into the parameters' ``momo.model_uri``.
+    landmark_sigma : mapping name -> float, optional
+        Per-landmark factors of ``config.sigma_lm`` (e.g. the reliability of
+        detected points, :data:`mcmcfit.detection.basel_names.BASEL_POINTS`); 1 for
+        names not in it.
 
     Returns
     -------
@@ -155,11 +161,13 @@ def fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConfi
     # default mcmcfit sets on import comes too late when numpy was imported first.
     with threadpool_limits(limits=1, user_api="blas"):
         return _fit(image, landmarks, model, config=config, seed=seed, progress=progress,
-                    face_box=face_box, model_uri=model_uri)
+                    face_box=face_box, model_uri=model_uri,
+                    landmark_sigma=landmark_sigma)
 
 
 def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConfig | None,
-         seed: int, progress: Progress | None, face_box, model_uri: str) -> FitResult:
+         seed: int, progress: Progress | None, face_box, model_uri: str,
+         landmark_sigma=None) -> FitResult:
     """:func:`fit` without the BLAS thread limit."""
     cfg = config or FitConfig()
     t_start = time.perf_counter()
@@ -171,6 +179,8 @@ def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConf
     if img.size == 0 or float(img.max()) < _BLACK:
         raise InputError("image is entirely black: there is no face to fit")
     h, w = img.shape[:2]
+    check_fit_inputs(w, h, landmarks=landmarks, face_box=face_box,
+                     model_landmarks=model.landmark_vertices)
     geometry = LandmarkGeometry(model, threads=1)
     factor: LandmarkTarget | FaceBoxTarget | None = None
     params0 = initial_params(model, w, h, n_shape=cfg.n_shape, n_albedo=cfg.n_albedo,
@@ -179,7 +189,8 @@ def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConf
     unknown: tuple[str, ...] = ()
     if landmarks is not None:
         factor = LandmarkTarget(geometry, landmarks, sigma=cfg.sigma_lm, image_size=ImageSize(w, h),
-                                hidden_probability=cfg.lm_hidden_probability)
+                                hidden_probability=cfg.lm_hidden_probability,
+                                sigma_factors=landmark_sigma)
         used, unknown = tuple(factor.names), tuple(factor.unknown)
         if unknown:
             warnings.warn(f"ignoring {len(unknown)} landmark(s) the model does not have: "

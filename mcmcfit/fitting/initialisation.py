@@ -1,18 +1,25 @@
-"""Starting parameters of a fit: the default camera for the image size and a pose guess.
+"""Starting parameters of a fit: input checks, the default camera for the image size, a pose guess.
+
+:func:`check_fit_inputs` refuses, in microseconds and before anything is set up,
+inputs that are not a face photograph a fit can use: an image too small, target
+landmarks far outside the image, a face of a few pixels.
 
 The guess places the mean face so that its landmarks fit the target's in a
 least-squares sense: first a frontal similarity (scale and image offset,
 linear), which sets the distance from the focal length and the translation;
 then optionally a perspective least-squares refinement of the three angles
 and the translation (``scipy.optimize.least_squares`` with a soft-L1 loss),
-kept only if it lowers the reprojection error. A face box alone gives the
-distance from its size and the translation from its centre (frontal).
+kept only if it lowers the reprojection error. A face box alone places the
+face (not the head) frontally so that its landmarks give the box by the
+detector's convention (:func:`mcmcfit.targets.landmarks.face_box_of`).
 
-This module imports :mod:`albedo_model` (camera, errors, model, params),
-:mod:`mcmcfit.targets.landmarks` and :mod:`mcmcfit.targets.likelihoods`.
+This module imports :mod:`albedo_model` (camera, errors, model, params) and
+:mod:`mcmcfit.targets.landmarks` (and :mod:`scipy.optimize` inside a function).
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -20,10 +27,112 @@ from albedo_model.camera import pixel_scale, principal_point_px, project
 from albedo_model.errors import InputError
 from albedo_model.model import MorphableModel
 from albedo_model.params import MoMoCoefficients, RenderParameter, default_square, fit_to_image_size
-from mcmcfit.targets.landmarks import LandmarkGeometry
-from mcmcfit.targets.likelihoods import FACE_BOX_LANDMARKS
+from mcmcfit.targets.landmarks import (
+    FACE_BOX_ENLARGEMENT,
+    FACE_BOX_RAISE,
+    MIN_LANDMARKS,
+    LandmarkGeometry,
+    face_box_names,
+    face_box_of,
+    target_landmarks,
+)
 
-__all__ = ["initial_params", "pose_from_face_box", "pose_from_landmarks"]
+__all__ = ["MIN_FACE_PX", "MIN_IMAGE_PX", "OUTSIDE_MARGIN", "check_fit_inputs", "initial_params",
+           "pose_from_face_box", "pose_from_landmarks"]
+
+#: Smallest image side a fit accepts. The default camera frames a head at 1 m in about
+#: 75 % of the image, so a 32 px image holds about the smallest face that is still
+#: worth fitting (the 24 px wide head of the hard cases, landmarks ~13 x 16 px) with a
+#: few pixels of background around it for the colour-histogram background model.
+#: Below that the face is a handful of pixels, and a 1 x 1 image would still run the
+#: whole schedule (minutes) to fit nothing.
+MIN_IMAGE_PX = 32
+#: Smallest face: the larger side of the bounding box of the target landmarks used.
+#: At 8 px the eyes are ~4 px apart and eyes, nose and mouth a pixel or two each: the
+#: landmark and image likelihoods no longer constrain shape or albedo. The 24 px wide
+#: face of the hard cases spans ~16 px. A face box must be as large as the box of such
+#: landmarks (``FACE_BOX_ENLARGEMENT x 8 px`` = 12 px per side).
+MIN_FACE_PX = 8.0
+#: Target landmarks may lie this far outside the image (a fraction of its smaller side,
+#: e.g. a chin just below the frame); farther out they are an error.
+OUTSIDE_MARGIN = 0.1
+
+
+def check_fit_inputs(width: int, height: int, *, landmarks=None, face_box=None,
+                     model_landmarks: Iterable[str] = ()) -> None:
+    """Raise InputError when the inputs of a fit cannot be a face photograph to fit.
+
+    Parameters
+    ----------
+    width, height : int
+        Image size in pixels.
+    landmarks : list of Landmark or mapping name -> (x, y), optional
+        Target landmarks; only the visible ones the model has are checked (with
+        fewer than :data:`~mcmcfit.targets.landmarks.MIN_LANDMARKS` of them the
+        landmark target raises its own error later).
+    face_box : (x0, y0, x1, y1), optional
+        Checked only without landmarks (the fit ignores it otherwise).
+    model_landmarks : iterable of str
+        The model's landmark names.
+
+    Raises
+    ------
+    InputError
+        An image smaller than :data:`MIN_IMAGE_PX` per side; a used landmark more
+        than :data:`OUTSIDE_MARGIN` of the image outside it (named), or none inside
+        it; landmarks or a face box smaller than :data:`MIN_FACE_PX`; a face box
+        mostly outside the image.
+    """
+    w, h = int(width), int(height)
+    if min(w, h) < MIN_IMAGE_PX:
+        raise InputError(f"the image is {w}x{h} pixels; a face fit needs at least "
+                         f"{MIN_IMAGE_PX}x{MIN_IMAGE_PX}")
+    if landmarks is not None:
+        known = set(model_landmarks)
+        used = {n: p for n, p in target_landmarks(landmarks).items() if n in known}
+        if len(used) >= MIN_LANDMARKS:
+            _check_landmarks(used, w, h)
+    elif face_box is not None:
+        _check_face_box(_face_box(face_box), w, h)
+
+
+def _check_landmarks(used: dict[str, np.ndarray], w: int, h: int) -> None:
+    pts = np.array(list(used.values()))
+    margin = OUTSIDE_MARGIN * min(w, h)
+    far = [n for n, (x, y) in used.items()
+           if x < -margin or y < -margin or x > w + margin or y > h + margin]
+    if far:
+        shown = ", ".join(f"{n} ({used[n][0]:.0f}, {used[n][1]:.0f})" for n in far[:4])
+        more = f" and {len(far) - 4} more" if len(far) > 4 else ""
+        raise InputError(f"{len(far)} of {len(used)} target landmarks lie more than "
+                         f"{margin:.0f} px outside the {w}x{h} image: {shown}{more} "
+                         "(landmarks of another image or image size?)")
+    inside = (pts[:, 0] >= 0) & (pts[:, 0] <= w) & (pts[:, 1] >= 0) & (pts[:, 1] <= h)
+    if not inside.any():
+        raise InputError(f"none of the {len(used)} target landmarks lies inside the {w}x{h} image")
+    extent = float(np.ptp(pts, axis=0).max())
+    if extent < MIN_FACE_PX:
+        raise InputError(f"the target landmarks span only {extent:.1f} px: a face smaller than "
+                         f"{MIN_FACE_PX:.0f} px cannot be fitted")
+
+
+def _check_face_box(b: np.ndarray, w: int, h: int) -> None:
+    side = float(min(b[2] - b[0], b[3] - b[1]))
+    box = f"face box ({b[0]:.0f}, {b[1]:.0f}, {b[2]:.0f}, {b[3]:.0f})"
+    if side < FACE_BOX_ENLARGEMENT * MIN_FACE_PX:
+        raise InputError(f"{box} is only {side:.1f} px across: a face box smaller than "
+                         f"{FACE_BOX_ENLARGEMENT * MIN_FACE_PX:.0f} px cannot be fitted")
+    inside_w = max(0.0, min(b[2], w) - max(b[0], 0.0))
+    inside_h = max(0.0, min(b[3], h) - max(b[1], 0.0))
+    if inside_w * inside_h < 0.5 * (b[2] - b[0]) * (b[3] - b[1]):
+        raise InputError(f"{box} lies mostly outside the {w}x{h} image")
+
+
+def _face_box(box) -> np.ndarray:
+    b = np.asarray(box, np.float64).reshape(-1)
+    if b.shape != (4,) or not np.all(np.isfinite(b)) or not (b[2] > b[0] and b[3] > b[1]):
+        raise InputError(f"face box must be (x0, y0, x1, y1) with x1 > x0, y1 > y0: {box!r}")
+    return b
 
 
 def initial_params(model: MorphableModel, width: int, height: int, *, n_shape: int = 50,
@@ -118,26 +227,51 @@ def _refine(start: RenderParameter, pts: np.ndarray, obs: np.ndarray) -> RenderP
 
 
 def pose_from_face_box(geometry: LandmarkGeometry, box, params: RenderParameter) -> RenderParameter:
-    """Frontal pose fitting a face box ``(x0, y0, x1, y1)`` (the measures of the face-box likelihood).
+    """Frontal pose whose face landmarks give the face box ``(x0, y0, x1, y1)``.
 
-    The larger of the eye-to-eye and eyes-to-lips spans is set to diag / 3 and
-    the nose tip to the box centre.
+    The box is read as :class:`~mcmcfit.targets.landmarks.FaceBoxTarget` reads it:
+    the bounding box of the model's face landmarks (brows, eyes, nose, mouth, chin;
+    not the head with its scalp and ears), enlarged and raised by the detector's
+    convention (:func:`~mcmcfit.targets.landmarks.face_box_of`). A frontal similarity
+    sets the distance from the box size and the translation from its centre; two
+    perspective corrections then make the projected box match (the face-box
+    likelihood is at its maximum there).
+
+    Parameters
+    ----------
+    geometry : LandmarkGeometry
+    box : (x0, y0, x1, y1) pixels
+    params : RenderParameter
+        Camera, image size and coefficients to keep (the pose is replaced).
+
+    Raises
+    ------
+    InputError
+        A malformed box, or a model without eye, mouth and nose landmarks.
     """
-    b = np.asarray(box, np.float64).reshape(-1)
-    if b.shape != (4,) or not (b[2] > b[0] and b[3] > b[1]):
-        raise InputError(f"face box must be (x0, y0, x1, y1) with x1 > x0, y1 > y0: {box!r}")
-    names = list(FACE_BOX_LANDMARKS)
-    missing = [n for n in names if n not in geometry.names]
-    if missing:
-        raise InputError(f"a face-box pose guess needs model landmark {missing[0]!r}")
-    p = dict(zip(names, geometry.points(names, params)))
-    eye_l = 0.5 * (p["left.eye.corner_outer"] + p["left.eye.corner_inner"])
-    eye_r = 0.5 * (p["right.eye.corner_outer"] + p["right.eye.corner_inner"])
-    lips = 0.5 * (p["left.lips.corner"] + p["right.lips.corner"])
-    span_mm = max(np.linalg.norm(eye_l[:2] - eye_r[:2]),
-                  np.linalg.norm(0.5 * (eye_l[:2] + eye_r[:2]) - lips[:2]))
-    diag = float(np.hypot(b[2] - b[0], b[3] - b[1]))
-    scale = (diag / 3.0) / span_mm
-    nose = p["center.nose.tip"]
-    cx, cy = 0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])
-    return _with_similarity(params, scale, cx - scale * nose[0], cy + scale * nose[1], float(nose[2]))
+    b = _face_box(box)
+    names = face_box_names(geometry)
+    pts = geometry.points(names, params)
+    lo, hi = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
+    w_mm, h_mm = hi - lo
+    size_px = np.sqrt((b[2] - b[0]) * (b[3] - b[1]))
+    scale = float(size_px / (FACE_BOX_ENLARGEMENT * np.sqrt(w_mm * h_mm)))
+    # the box centre in the model frame (y up): the landmarks' centre raised
+    cx_mm = 0.5 * (lo[0] + hi[0])
+    cy_mm = 0.5 * (lo[1] + hi[1]) + FACE_BOX_RAISE * h_mm
+    bx, by = 0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])
+    ox, oy = float(bx - scale * cx_mm), float(by + scale * cy_mm)
+    z_mean = float(pts[:, 2].mean())
+    start = _with_similarity(params, scale, ox, oy, z_mean)
+    for _ in range(2):
+        px, depth = project(pts, start.pose, start.view, start.camera, start.image_size)
+        if not (np.all(np.isfinite(px)) and np.all(depth > 0)):
+            break
+        pred = face_box_of(px)
+        ratio = float(size_px / np.sqrt((pred[2] - pred[0]) * (pred[3] - pred[1])))
+        # u = o + s x: scaling by r maps the predicted centre p to o + r (p - o)
+        scale *= ratio
+        ox = float(bx + ratio * (ox - 0.5 * (pred[0] + pred[2])))
+        oy = float(by + ratio * (oy - 0.5 * (pred[1] + pred[3])))
+        start = _with_similarity(params, scale, ox, oy, z_mean)
+    return start

@@ -25,7 +25,9 @@ from typing import NamedTuple
 import numpy as np
 
 from albedo_model.errors import InputError
-from albedo_model.io.model_files import DEFAULT_MODEL, file_sha256
+from albedo_model.io.model_files import (
+    BUILTIN_MODELS, DEFAULT_FACE_MODEL, DEFAULT_MODEL, file_sha256,
+)
 from albedo_model.model import MorphableModel
 from mcmcfit.fitting.config import FitConfig
 
@@ -73,7 +75,7 @@ def load_model_cached(spec: str | os.PathLike = DEFAULT_MODEL, *,
     if key not in _CACHE:
         from albedo_model.io.model_files import load_model
 
-        uri = DEFAULT_MODEL if str(spec) == DEFAULT_MODEL else str(path)
+        uri = str(spec) if str(spec) in BUILTIN_MODELS else str(path)
         _CACHE.clear()  # one model per worker process is the common case; bound the memory
         _CACHE[key] = LoadedModel(load_model(path), file_sha256(path), uri)
     return _CACHE[key]
@@ -191,7 +193,7 @@ def _check_out_dir(out_dir: Path, force: bool) -> None:
 def fit_into_folder(image: np.ndarray, landmarks, loaded: LoadedModel, out_dir: str | os.PathLike,
                     *, config: FitConfig | None = None, seed: int = 0, face_box=None,
                     progress=None, force: bool = False, inputs: dict | None = None,
-                    truth=None, before_write=None) -> dict:
+                    truth=None, before_write=None, landmark_sigma=None) -> dict:
     """Fit arrays and write the complete result folder atomically (the core of the jobs).
 
     Parameters
@@ -212,6 +214,8 @@ def fit_into_folder(image: np.ndarray, landmarks, loaded: LoadedModel, out_dir: 
         Ground truth of a synthetic case; adds the albedo error to the summary and report.
     before_write : callable ``(folder: Path) -> None``, optional
         Writes extra files into the temporary folder first (e.g. the demo's truth).
+    landmark_sigma : mapping name -> float, optional
+        Per-landmark factors of the landmark noise (detected landmarks).
 
     Returns
     -------
@@ -225,7 +229,7 @@ def fit_into_folder(image: np.ndarray, landmarks, loaded: LoadedModel, out_dir: 
     _check_out_dir(out, force)
     cfg = config or FitConfig()
     result = fit(image, landmarks, loaded.model, config=cfg, seed=seed, progress=progress,
-                 face_box=face_box, model_uri=loaded.uri)
+                 face_box=face_box, model_uri=loaded.uri, landmark_sigma=landmark_sigma)
     with atomic_folder(out, force=force) as tmp:
         if before_write is not None:
             before_write(tmp)
@@ -252,8 +256,9 @@ def check_landmark_names(landmarks, model: MorphableModel, *, source="landmarks"
 
 def run_fit_job(image_path: str | os.PathLike, out_dir: str | os.PathLike, *,
                 landmarks_path: str | os.PathLike | None = None, face_box=None,
-                model="default", config: FitConfig | None = None, seed: int = 0,
-                progress=None, force: bool = False, model_progress: bool = False) -> dict:
+                model=DEFAULT_FACE_MODEL, config: FitConfig | None = None, seed: int = 0,
+                progress=None, force: bool = False, model_progress: bool = False,
+                detect: bool = True, face: int | None = None) -> dict:
     """Fit one image file and write its result folder (complete or not at all).
 
     Parameters
@@ -266,9 +271,20 @@ def run_fit_job(image_path: str | os.PathLike, out_dir: str | os.PathLike, *,
         ``.tlms`` or iBUG ``.pts`` 2-D landmarks.
     face_box : "x,y,w,h" or (x, y, w, h), optional
         Used when there are no landmarks.
+    detect : bool
+        With neither landmarks nor a face box, detect the landmarks
+        (:func:`mcmcfit.detection.landmarks.detect_landmarks`, the ``landmarks``
+        extra): they and a picture of them are written to the result folder
+        (``landmarks_detected.tlms``, ``landmarks_detected.png``) and described in
+        ``summary.json`` (``inputs.landmark_detection``). False: start from a
+        frontal face in the middle of the image, with a warning.
+    face : int, optional
+        Which detected face when there are several (0: the largest).
     model : str, path-like, LoadedModel or MorphableModel
-        ``"default"``, a model file, or an already loaded model (then its
-        SHA-256 and URI come from the :class:`LoadedModel`).
+        ``"default-face"`` (the default for photographs: the face-only crop of the
+        built-in model, so that skin albedo is not asked to explain hair),
+        ``"default"`` (the whole head), a model file, or an already loaded model
+        (then its SHA-256 and URI come from the :class:`LoadedModel`).
     config : FitConfig, optional
     seed : int
     progress : callable ``(stage, chain, done, total)``, optional
@@ -297,16 +313,50 @@ def run_fit_job(image_path: str | os.PathLike, out_dir: str | os.PathLike, *,
         raise InputError(f"{image_path}: the image is all black; there is no face to fit")
     landmarks = read_landmarks(landmarks_path) if landmarks_path is not None else None
     box = parse_face_box(face_box) if face_box is not None else None
+    detection = None
     if landmarks is None and box is None:
-        warnings.warn("no landmarks and no face box: the fit starts from a frontal face in the "
-                      "middle of the image", FitWarning, stacklevel=2)
+        if detect:
+            from mcmcfit.fitting.initialisation import check_fit_inputs
+
+            check_fit_inputs(image.shape[1], image.shape[0])  # a 1x1 PNG fails here, not later
+            from mcmcfit.detection.landmarks import detect_landmarks
+
+            detection = detect_landmarks(image, face=face)
+            landmarks = detection.landmarks
+        else:
+            warnings.warn("no landmarks and no face box: the fit starts from a frontal face in "
+                          "the middle of the image", FitWarning, stacklevel=2)
     loaded = _as_loaded(model, progress=model_progress)
     if landmarks is not None:
-        check_landmark_names(landmarks, loaded.model, source=landmarks_path)
+        check_landmark_names(landmarks, loaded.model,
+                             source="detected landmarks" if detection else landmarks_path)
     inputs = {"image": str(image_path), "image_sha256": file_sha256(image_path),
               "image_size": [int(image.shape[1]), int(image.shape[0])],
-              "landmarks": None if landmarks_path is None else str(landmarks_path),
+              "landmarks": ("detected" if detection is not None else
+                            None if landmarks_path is None else str(landmarks_path)),
               "face_box_xywh": None if box is None else
               [box[0], box[1], box[2] - box[0], box[3] - box[1]]}
+    if detection is not None:
+        inputs["landmark_detection"] = detection.summary()
+        if detection.low_confidence:
+            warnings.warn(f"detected landmarks are low confidence (yaw {detection.yaw_deg:+.0f} "
+                          "deg, near profile): check landmarks_detected.png", FitWarning,
+                          stacklevel=2)
     return fit_into_folder(image, landmarks, loaded, out, config=config, seed=seed,
-                           face_box=box, progress=progress, force=force, inputs=inputs)
+                           face_box=box, progress=progress, force=force, inputs=inputs,
+                           before_write=None if detection is None else
+                           _detection_writer(image, detection),
+                           landmark_sigma=None if detection is None else detection.sigma_factors)
+
+
+def _detection_writer(image: np.ndarray, detection):
+    """Return the ``before_write`` hook that puts the detected landmarks into the folder."""
+    def write(folder: Path) -> None:
+        from albedo_model.io.tlms import write_tlms
+        from mcmcfit.detection.overlay import landmarks_png
+
+        write_tlms(folder / "landmarks_detected.tlms", detection.landmarks)
+        landmarks_png(image, detection.points(), folder / "landmarks_detected.png",
+                      mesh=detection.mesh, title=f"detected landmarks: face {detection.face} of "
+                      f"{detection.n_faces}, yaw {detection.yaw_deg:+.0f} deg")
+    return write

@@ -207,7 +207,7 @@ def landmark_log_lik(predicted: np.ndarray, observed: np.ndarray, visible: np.nd
     predicted : (k, 2) float, model landmarks projected to pixels
     observed : (k, 2) float, the target's (clicked) positions
     visible : (k,) bool, whether each model landmark is seen by the camera
-    sigma : float, pixels
+    sigma : float or (k,) float, pixels (one per landmark)
     hidden_log_density : float
         Log density of a clicked position whose model landmark is hidden
         (e.g. ``log(eps) - log(W H)``: an annotation error of probability eps,
@@ -229,6 +229,10 @@ def landmark_log_lik(predicted: np.ndarray, observed: np.ndarray, visible: np.nd
     vis = np.asarray(visible, bool)
     d2 = np.sum((np.asarray(predicted, np.float64) - np.asarray(observed, np.float64)) ** 2, 1)
     n_vis = int(vis.sum())
+    if np.ndim(sigma):  # one sigma per landmark
+        s = np.asarray(sigma, np.float64)[vis]
+        return float(np.sum(-LOG_2PI - 2.0 * np.log(s)) - np.sum(d2[vis] / (2.0 * s * s))
+                     + (vis.size - n_vis) * hidden_log_density)
     return float(n_vis * landmark_log_normaliser(sigma) - np.sum(d2[vis]) / (2.0 * sigma * sigma)
                  + (vis.size - n_vis) * hidden_log_density)
 

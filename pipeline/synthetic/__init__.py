@@ -10,6 +10,9 @@ albedo_preview
     Rendered views of per-vertex albedo maps.
 default_model
     The built-in default model: synthetic population -> AlbedoMM HDF5, cached.
+face_region, default_face_model
+    The face region of the template head, and ``default-face``: the default model cropped
+    to it (cached beside it).
 head
     The procedural template head and its shape model.
 
