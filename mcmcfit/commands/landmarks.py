@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     if out is not None:
         write_tlms(out, found.landmarks)
     if args.png:
-        landmarks_png(image, found.points(), args.png, mesh=found.mesh,
+        landmarks_png(image, found.points(), args.png, mesh=found.mesh, box=found.box,
                       title=f"{Path(args.image).name}: face {found.face} of {found.n_faces}, "
                             f"yaw {found.yaw_deg:+.0f} deg")
     flag = "; LOW CONFIDENCE (near profile): check the points" if found.low_confidence else ""

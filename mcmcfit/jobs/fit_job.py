@@ -357,6 +357,6 @@ def _detection_writer(image: np.ndarray, detection):
 
         write_tlms(folder / "landmarks_detected.tlms", detection.landmarks)
         landmarks_png(image, detection.points(), folder / "landmarks_detected.png",
-                      mesh=detection.mesh, title=f"detected landmarks: face {detection.face} of "
+                      mesh=detection.mesh, box=detection.box, title=f"detected landmarks: face {detection.face} of "
                       f"{detection.n_faces}, yaw {detection.yaw_deg:+.0f} deg")
     return write

@@ -129,6 +129,18 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
             parts.append(_figure(name, cap, "small"))
     if have("fit_landmarks.png"):
         parts.append("<br>" + _figure("fit_landmarks.png", "landmarks, fit and difference"))
+    detection = (summary.get("inputs") or {}).get("landmark_detection")
+    if detection:
+        flag = (" <b>Low confidence (near profile): check the points.</b>"
+                if detection.get("low_confidence") else "")
+        dropped = ", ".join(detection.get("dropped", [])) or "none"
+        parts.append(
+            f"<h2>Detected landmarks</h2><p>{html.escape(str(detection.get('method')))}: face "
+            f"{detection.get('face')} of {detection.get('n_faces')} (the largest is 0), yaw "
+            f"{_fmt(detection.get('yaw_deg'))} deg estimated from the mesh; far-side points "
+            f"dropped: {html.escape(dropped)}.{flag}</p>")
+        if have("landmarks_detected.png"):
+            parts.append(_figure("landmarks_detected.png", "detected landmarks (Basel names)"))
     for kind, title in (("albedo", "Posterior-mean albedo (display-encoded)"),
                         ("uncertainty", "Uncertainty: posterior standard deviation")):
         parts.append(f"<h2>{title}</h2>")

@@ -160,10 +160,12 @@ def test_fit_of_a_photograph_and_nothing_else(tmp_path, astronaut):
     post = np.load(out / "posterior.npz")
     assert np.all(np.isfinite(post["diffuse_mean"]))
     assert json.loads((out / "summary.json").read_text())["inputs"]["landmarks"] == "detected"
+    report = (out / "report.html").read_text()
+    assert "Detected landmarks" in report and "landmarks_detected.png" in report
 
 
 @needs_mediapipe
-def test_lightstage_photograph(shared_data):
+def test_lightstage_photograph(shared_data, tmp_path):
     from albedo_model.io.image_io import read_image
 
     image = read_image(shared_data / "albedomm_sample" / "im1.jpg")[::8, ::8]
@@ -173,6 +175,18 @@ def test_lightstage_photograph(shared_data):
     h, w = image.shape[:2]
     assert len(pts) == len(BASEL_POINTS)
     assert np.all((pts >= 0) & (pts < [w, h]))
+    # and a short fit of it: finite outputs, landmarks placed, report written
+    from mcmcfit.fitting.config import FitConfig
+    from mcmcfit.jobs.fit_job import run_fit_job
+
+    png = tmp_path / "im1_small.png"
+    write_png(png, image)
+    summary = run_fit_job(png, tmp_path / "fit", seed=1,
+                          config=FitConfig(steps=100, landmark_steps=1500, thin=5))
+    assert summary["inputs"]["landmarks"] == "detected"
+    assert np.isfinite(summary["landmark_rmse_px"]) and summary["landmark_rmse_px"] < 10.0
+    assert (tmp_path / "fit" / "report.html").is_file()
+    assert np.all(np.isfinite(np.load(tmp_path / "fit" / "posterior.npz")["diffuse_mean"]))
 
 
 @needs_mediapipe

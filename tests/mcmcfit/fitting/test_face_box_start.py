@@ -147,3 +147,20 @@ def test_image_stage_from_face_box_finds_yaw_and_keeps_the_face_in_place(default
           f"centre error {np.round(centre, 3)} box sides")
     assert np.median(yaw) < 10.0
     assert np.median(size) < 0.1 and np.median(centre) < 0.05
+
+
+def test_face_box_factor_holds_a_gaussian_on_yaw_and_pitch(default_model, geometry):
+    """The orientation factor is exactly N(yaw; 0, 30 deg) N(pitch; 0, 10 deg) (as angles)."""
+    from mcmcfit.targets.landmarks import FaceBoxTarget
+
+    case = synthetic_case(default_model, seed=0)
+    box = face_box_of(np.array([case.landmarks[n] for n in FACE_EXTENT_LANDMARKS
+                                if n in case.landmarks]))
+    with_turn = FaceBoxTarget(geometry, box)
+    without = FaceBoxTarget(geometry, box, yaw_sigma_deg=None, pitch_sigma_deg=None)
+    p = case.truth
+    for yaw, pitch in ((0.0, 0.0), (0.3, -0.2), (-0.5, 0.1)):
+        q = p._replace(pose=p.pose._replace(yaw=yaw, pitch=pitch))
+        want = (-math.log(2 * math.pi) - math.log(math.radians(30)) - math.log(math.radians(10))
+                - 0.5 * ((yaw / math.radians(30)) ** 2 + (pitch / math.radians(10)) ** 2))
+        assert with_turn.log_lik(q) - without.log_lik(q) == pytest.approx(want, abs=1e-9)
