@@ -92,6 +92,7 @@ def finished_record(summary: dict, folder: str | os.PathLike | None = None) -> d
         "fit_seconds": _finite(timings.get("total_s")),
         "log_lik_img": _finite(best.get("log_lik_img")),
         "model_sha256": summary.get("model_sha256"),
+        "converged": summary.get("converged"),
         "albedo": albedo_digest(Path(folder) / "posterior.npz") if folder is not None else {},
     }
 

@@ -107,6 +107,7 @@ class BatchResult:
     fitted: int
     failed: list[dict]
     skipped: int
+    unconverged: int = 0
 
     @property
     def exit_code(self) -> int:
@@ -217,7 +218,7 @@ def run_batch(opts: BatchOptions, *, log=None, task_fn=run_task) -> BatchResult:
         f"{len(plan.tasks)} to fit, {len(plan.skipped)} skipped"
         + (" (see failures.jsonl)" if plan.skipped else ""))
     failed: list[dict] = []
-    fitted = 0
+    fitted = unconverged = 0
     bar = tqdm(total=len(plan.tasks), unit="img", desc="fitting", file=sys.stderr,
                disable=not opts.progress or not plan.tasks, dynamic_ncols=True)
     try:
@@ -226,6 +227,7 @@ def run_batch(opts: BatchOptions, *, log=None, task_fn=run_task) -> BatchResult:
             record = {**outcome, "run": run_id, "finished_at": _now()}
             if outcome.get("status") == "ok":
                 fitted += 1
+                unconverged += outcome.get("converged") is False
                 append_line(out / BATCH_JOURNAL, record)
             else:
                 failed.append(record)
@@ -235,4 +237,4 @@ def run_batch(opts: BatchOptions, *, log=None, task_fn=run_task) -> BatchResult:
             bar.set_postfix_str(f"done={fitted} failed={len(failed)} remaining={remaining}")
     finally:
         bar.close()
-    return BatchResult(total, len(plan.complete), fitted, failed, len(plan.skipped))
+    return BatchResult(total, len(plan.complete), fitted, failed, len(plan.skipped), unconverged)

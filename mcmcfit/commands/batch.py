@@ -164,6 +164,10 @@ def run_batch_command(args: argparse.Namespace) -> int:
     print(f"mcmcfit batch: {result.fitted} fitted, {len(result.failed)} failed, "
           f"{result.already_complete} already complete, {result.skipped} skipped "
           f"-> {opts.out}", file=sys.stderr)
+    if result.unconverged:
+        print(f"mcmcfit batch: warning: {result.unconverged} of the {result.fitted} fitted images "
+              "have NOT converged ('converged': false in their summary.json and in batch.jsonl; "
+              "see the banner of their report.html)", file=sys.stderr)
     for f in result.failed[:10]:
         print(f"  failed: {f.get('path')}: {f.get('reason')}", file=sys.stderr)
     if len(result.failed) > 10:

@@ -33,6 +33,7 @@ from mcmcfit.fitting.cache_check import CacheCheck
 from mcmcfit.sampling.chain import (
     BestSample, ChainRecord, ChainRecorder, ChainResult, stacked_samples,
 )
+from mcmcfit.sampling.convergence import convergence
 from mcmcfit.sampling.diagnostics import chain_diagnostics
 from mcmcfit.targets.face import FaceTarget
 from mcmcfit.fitting.config import FitConfig
@@ -303,7 +304,8 @@ def _assemble(cfg: FitConfig, seed: int, layout: ParamLayout, template: RenderPa
     return FitResult(cfg, int(seed), layout, template, chains, best, best_post, lm_init,
                      mean_params, sum_acceptance(rec2), sum_acceptance(rec1), timings,
                      diagnostics, tuple(used), tuple(unknown),
-                     {"stage1": _sum_seconds(rec1), "stage2": _sum_seconds(rec2)})
+                     {"stage1": _sum_seconds(rec1), "stage2": _sum_seconds(rec2)},
+                     convergence(rec2, burn_fraction=cfg.burn_fraction) if rec2 else {})
 
 
 def _sum_seconds(records: list[ChainRecord]) -> dict[str, float]:

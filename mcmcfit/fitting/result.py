@@ -85,6 +85,9 @@ class FitResult:
     proposal_seconds : dict
         ``{"stage1": {name: s}, "stage2": {name: s}}``: wall time of the steps
         of each proposal, summed over chains (MH stages only).
+    convergence : dict
+        The image stage's convergence verdict
+        (:func:`mcmcfit.sampling.convergence.convergence`; empty without stage 2).
     """
 
     config: FitConfig
@@ -103,6 +106,7 @@ class FitResult:
     landmarks_used: tuple[str, ...] = ()
     landmarks_unknown: tuple[str, ...] = ()
     proposal_seconds: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
+    convergence: dict = dataclasses.field(default_factory=dict)
 
     def records(self, stage: int = 2) -> list[ChainRecord]:
         """Return the ChainRecords of one stage (1 or 2), one per chain that ran it."""

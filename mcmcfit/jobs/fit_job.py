@@ -235,6 +235,14 @@ def fit_into_folder(image: np.ndarray, landmarks, loaded: LoadedModel, out_dir: 
             before_write(tmp)
         summary = write_fit_outputs(tmp, result, loaded, image, landmarks=landmarks,
                                     face_box=face_box, inputs=inputs or {}, truth=truth)
+    conv = result.convergence
+    if conv and not conv.get("converged"):
+        worst = conv.get("worst") or [{}]
+        warnings.warn(
+            f"the chains have NOT converged (max R-hat {conv.get('max_rhat', float('nan')):.3g}, "
+            f"min bulk-ESS {conv.get('min_ess_bulk', float('nan')):.0f}, worst "
+            f"{worst[0].get('name', '?')}): the intervals and uncertainty maps show an unconverged "
+            "walk, not the posterior (summary.json 'converged': false)", FitWarning, stacklevel=2)
     return summary
 
 

@@ -90,6 +90,17 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
     parts = ["<!doctype html><html><head><meta charset='utf-8'>",
              "<title>mcmcfit fit report</title>", f"<style>{_CSS}</style></head><body>",
              "<h1>mcmcfit fit report</h1>"]
+    conv = summary.get("convergence") or {}
+    if conv and not conv.get("converged"):
+        worst = ", ".join(f"{html.escape(str(w['name']))} (R-hat {_fmt(w['rhat'])}, bulk-ESS "
+                          f"{_fmt(w['ess_bulk'])}, tail-ESS {_fmt(w['ess_tail'])})"
+                          for w in conv.get("worst", [])[:3])
+        parts.append(
+            "<div style='border:3px solid #c00;background:#fee;padding:0.6em;margin:0.6em 0'>"
+            "<b>The chains have NOT converged.</b> The posterior summaries, intervals and "
+            "uncertainty maps below show the spread of an unconverged walk, not the posterior. "
+            f"Rule: {html.escape(str(conv.get('rule')))}. Worst: {worst or 'too few draws'}. "
+            "Run more steps (--steps) or more chains (--chains).</div>")
     inputs = summary.get("inputs", {})
     overview = [
         ["image", inputs.get("image", "(array)")],

@@ -109,6 +109,8 @@ def build_summary(result: FitResult, *, model_sha256: str, model_uri: str, input
         "acceptance_rate": base["acceptance_rate"],
         "ess": {k: v.ess for k, v in diag.items()},
         "rhat": {k: v.rhat for k, v in diag.items()},
+        "converged": bool(result.convergence.get("converged", False)),
+        "convergence": result.convergence,
         "diagnostics": base["diagnostics"],
         "landmark_rmse_px": None if landmark_err is None else landmark_err["rmse_px"],
         "landmark_errors_px": None if landmark_err is None else landmark_err["per_landmark_px"],
