@@ -32,6 +32,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 
 from albedo_model.params import Block, SHLight
+from albedo_model.render.cache_table import Kept
 from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = ["SATURATION_LIMIT", "AlbedoConditional", "AlbedoData", "AlbedoSystem",
@@ -111,20 +112,6 @@ def albedo_system(jac, mean, bright, target, off, rank, n_points: int,
 AlbedoData = Callable[[ProposalState], "AlbedoSystem | None"]
 
 
-class _Factorisation:
-    """The conditional's factorisation under the unscaled light, kept while its system's key is."""
-
-    __slots__ = ("key", "value")
-
-    def __init__(self) -> None:
-        self.key, self.value = None, None
-
-    def get(self, system: AlbedoSystem, sigma: float):
-        if system.key is None or system.key != self.key:
-            self.key, self.value = system.key, _conditional(system, 1.0, sigma)
-        return self.value
-
-
 def _conditional(system: AlbedoSystem, scale: float, sigma: float):
     """``(mean (k,), cholesky L of the precision (k, k))`` for the light scaled by ``scale``.
 
@@ -189,7 +176,7 @@ class AlbedoConditional:
     sigma: float = 0.043
     name: str = "albedo-conditional"
     touches: ClassVar[Block] = Block.ALBEDO
-    _factorisation: _Factorisation = field(default_factory=_Factorisation, repr=False)
+    _factorisation: Kept = field(default_factory=Kept, repr=False)
 
     def __post_init__(self) -> None:
         """Validate ``sigma``."""
@@ -200,7 +187,7 @@ class AlbedoConditional:
         system = self.data(state)
         if system is None:
             return None
-        return self._factorisation.get(system, self.sigma)
+        return self._factorisation.get(system.key, lambda: _conditional(system, 1.0, self.sigma))
 
     def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
         """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
@@ -246,7 +233,7 @@ class LightAlbedoExchange:
     sigma: float = 0.043
     name: str = ""
     touches: ClassVar[Block] = Block.ALBEDO | Block.LIGHT
-    _factorisation: _Factorisation = field(default_factory=_Factorisation, repr=False)
+    _factorisation: Kept = field(default_factory=Kept, repr=False)
 
     def __post_init__(self) -> None:
         """Validate the scales and name the proposal after ``log_sigma`` if unnamed."""
@@ -265,7 +252,8 @@ class LightAlbedoExchange:
         system = self.data(state) if c.shape[0] and np.any(L) else None
         if system is None:
             return no_move(params, self.name)
-        here = self._factorisation.get(system, self.sigma)
+        here = self._factorisation.get(system.key,
+                                       lambda: _conditional(system, 1.0, self.sigma))
         there = _conditional(system, float(np.exp(log_s)), self.sigma)
         if here is None or there is None:
             return no_move(params, self.name)

@@ -48,8 +48,8 @@ from typing import NamedTuple
 
 from albedo_model.params import Block
 
-__all__ = ["ATOMIC_BLOCKS", "STAGE_DEPS", "BlockVersions", "bump", "new_stamp", "new_versions",
-           "stage_key", "stale"]
+__all__ = ["ATOMIC_BLOCKS", "STAGE_DEPS", "BlockVersions", "Kept", "bump", "new_stamp",
+           "new_versions", "stage_key", "stale"]
 
 _GEOMETRY = Block.SHAPE | Block.EXPRESSION
 _RAYS = Block.POSE | Block.CAMERA
@@ -125,3 +125,25 @@ def stale(stage: str, touched: Block) -> bool:
 def stage_key(versions: BlockVersions, stage: str) -> tuple[int, ...]:
     """Return the cache key of ``stage``'s product: the stamps of the blocks it reads."""
     return versions.of(STAGE_DEPS[stage])
+
+
+_NOTHING = object()
+
+
+class Kept:
+    """One product kept while its cache key (e.g. a :func:`stage_key`) is unchanged.
+
+    The caches outside a render state (proposal data, the albedo conditional's
+    factorisation) each hold one of these; ``key=None`` means "never reuse".
+    """
+
+    __slots__ = ("_key", "_value")
+
+    def __init__(self) -> None:
+        self._key, self._value = _NOTHING, None
+
+    def get(self, key, compute):
+        """Return the kept value for ``key``, calling ``compute()`` when the key changed."""
+        if key is None or self._key is _NOTHING or self._key != key:
+            self._key, self._value = key, compute()
+        return self._value

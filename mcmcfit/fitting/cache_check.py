@@ -31,6 +31,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from albedo_model.errors import AlbedoModelError
+from albedo_model.render.cache_table import Kept
 from albedo_model.render.renderer import Renderer
 from albedo_model.render.state import RenderState
 from mcmcfit.sampling.kernel import ChainState, StepInfo
@@ -53,9 +54,9 @@ class CacheMismatchError(AlbedoModelError):
 def _uncached(data):
     """Return a copy of a proposal-data object without its kept values (computes from scratch)."""
     fresh = copy.copy(data)
-    for name in ("_system", "_bases", "_kept"):  # the (key, value) pairs the data classes keep
-        if hasattr(fresh, name):
-            setattr(fresh, name, (None, None))
+    for name, value in vars(data).items():
+        if isinstance(value, Kept):
+            setattr(fresh, name, Kept())
     return fresh
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from albedo_model.errors import InputError
 from albedo_model.params import RenderParameter
-from albedo_model.render.cache_table import stage_key
+from albedo_model.render.cache_table import Kept, stage_key
 from albedo_model.render.renderer import Renderer
 from albedo_model.render.state import RenderState
 from albedo_model.shading.effects import Effects, offset_count
@@ -84,17 +84,15 @@ class RenderAlbedoData:
         self._specular_hi = None if spec is None else (
             spec.mean.astype(np.float64) + _HI_SD * spec.marginal_std()).reshape(n, 3).astype(
             np.float32)
-        self._system: tuple = (None, None)  # (key, AlbedoSystem or None)
-        self._bases: tuple = (None, None)  # (key, face pixels and their bases)
+        self._system = Kept()  # the AlbedoSystem (or None)
+        self._bases = Kept()  # face pixels and their bases
 
     def __call__(self, state: ProposalState) -> AlbedoSystem | None:
         """Return the albedo system of the accepted ``state``'s render (None: nothing to draw)."""
         rs = render_state_of(state, "albedo conditional data")
         k = len(state.params.momo.albedo)
         key = (stage_key(rs.versions, "albedo_system"), k)
-        if self._system[0] != key:
-            self._system = (key, self._compute(rs, state.params, k, key))
-        return self._system[1]
+        return self._system.get(key, lambda: self._compute(rs, state.params, k, key))
 
     @staticmethod
     def _colour(p: RenderParameter, effects: Effects) -> tuple[np.ndarray, np.ndarray]:
@@ -107,9 +105,10 @@ class RenderAlbedoData:
 
     def _face_bases(self, rs: RenderState, k: int):
         """Face pixels and their interpolated albedo means and bases (kept per ray cast)."""
-        key = (stage_key(rs.versions, "albedo_bases"), k)
-        if self._bases[0] == key:
-            return self._bases[1]
+        return self._bases.get((stage_key(rs.versions, "albedo_bases"), k),
+                               lambda: self._interpolate_bases(rs, k))
+
+    def _interpolate_bases(self, rs: RenderState, k: int):
         hits = rs.hits
         face = np.flatnonzero((hits.prim_id >= 0) & self._ok)
         n_face = face.size
@@ -126,9 +125,7 @@ class RenderAlbedoData:
         specular = None if self._specular is None else at_pixels(self._specular)
         ref_d = barycentric(w, tri, self._diffuse_hi)
         ref_s = None if self._specular_hi is None else barycentric(w, tri, self._specular_hi)
-        value = (face, diffuse, specular, ref_d, ref_s, n_face / max(face.size, 1))
-        self._bases = (key, value)
-        return value
+        return face, diffuse, specular, ref_d, ref_s, n_face / max(face.size, 1)
 
     def _compute(self, rs: RenderState, p: RenderParameter, k: int, key: tuple):
         hits = rs.hits

@@ -52,7 +52,9 @@ def corner_weights(hits: RayHits, pixels: np.ndarray, dtype=np.float32) -> np.nd
 
 
 def barycentric(weights: np.ndarray, corners: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Interpolate per-vertex ``values`` (n, ...) at N points: ``sum_k weights[:, k] values[corners[:, k]]``.
+    """Interpolate per-vertex ``values`` (n, ...) at N points inside triangles.
+
+    ``out[i] = sum_k weights[i, k] values[corners[i, k]]``.
 
     Parameters
     ----------

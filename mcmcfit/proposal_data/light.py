@@ -24,7 +24,7 @@ import numpy as np
 from albedo_model.camera import euler_rotation
 from albedo_model.errors import InputError
 from albedo_model.params import ColorTransform
-from albedo_model.render.cache_table import stage_key
+from albedo_model.render.cache_table import Kept, stage_key
 from albedo_model.render.renderer import Renderer
 from albedo_model.shading.effects import offset_count
 from mcmcfit.proposal_data.face_pixels import (
@@ -89,14 +89,15 @@ class RenderLightData:
         self._ok = unsaturated(self._target)
         self._perm = np.random.default_rng(seed).permutation(self._target.shape[0])
         self.n_points = int(n_points)
-        self._kept: tuple = (None, None)  # (key, data)
+        self._kept = Kept()
 
     def __call__(self, state: ProposalState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(normals (k, 3) world, albedo (k, 3), target (k, 3))``, k <= n_points."""
         rs = render_state_of(state, "SH light solver data")
-        key = stage_key(rs.versions, "light_data")
-        if self._kept[0] == key:
-            return self._kept[1]
+        return self._kept.get(stage_key(rs.versions, "light_data"), lambda: self._points(rs))
+
+    def _points(self, rs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Gather the solver's points of ``rs`` (see the module notes)."""
         p = rs.params
         hits = rs.hits
         if hits.prim_id.shape[0] != self._target.shape[0]:
@@ -113,5 +114,4 @@ class RenderLightData:
         albedo = barycentric(w, tri, np.asarray(rs.diffuse, np.float64).reshape(-1, 3))
         n_off = offset_count(self.renderer.effects(p))
         target = invert_color_transform(self._target[pix], p.color_transform, n_offsets=n_off)
-        self._kept = (key, (normals, albedo, target))
-        return self._kept[1]
+        return normals, albedo, target

@@ -7,7 +7,8 @@ A :class:`ChainRecorder` is the sampler's callback; it fills a
   the proposal (index into ``proposal_names``), ``accepted`` and
   ``rejected_by`` (0 accepted, 1 landmarks, 2 prior, 3 image, 4 joint test, 5 identity move:
   :data:`mcmcfit.sampling.kernel.REJECTION_STAGES`);
-* every ``thin``-th step: the parameter vector (:class:`~mcmcfit.sampling.param_vector.ParamLayout`);
+* every ``thin``-th step: the parameter vector
+  (:class:`~mcmcfit.sampling.param_vector.ParamLayout`);
 * the best states by image likelihood (the reference's result), by landmark
   likelihood (the reference's ``lminit``) and by log posterior, over every
   step including the initial state (step -1).

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mcmcfit.sampling.chain import ChainRecord
+from mcmcfit.sampling.chain import ChainRecord, stacked_samples
 
 __all__ = ["ESS_MIN", "RHAT_MAX", "convergence", "judge"]
 
@@ -46,15 +46,14 @@ def _arviz():
 def _series(records: Sequence[ChainRecord], burn_fraction: float) -> dict[str, np.ndarray]:
     """(chains, draws) arrays of the monitored quantities after the burn-in."""
     out: dict[str, np.ndarray] = {}
-    n = min(r.samples.shape[0] for r in records)
-    start = int(burn_fraction * n)
     if records[0].steps > 0:
         steps = min(r.steps for r in records)
         s0 = int(burn_fraction * steps)
         out["log_posterior"] = np.stack([r.log_posterior[s0:steps] for r in records])
         out["log_lik_img"] = np.stack([r.log_lik_img[s0:steps] for r in records])
-    kept = np.stack([r.samples[start:n] for r in records])  # (chains, draws, d)
-    for j, name in enumerate(records[0].layout.names):
+    layout = records[0].layout
+    kept = stacked_samples(records, layout.size, discard=burn_fraction)  # (chains, draws, d)
+    for j, name in enumerate(layout.names):
         col = kept[:, :, j]
         if col.size and np.ptp(col) > 0.0:
             out[name] = col
