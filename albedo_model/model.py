@@ -5,6 +5,10 @@ default (AlbedoMM's "transferred" model); ``shared_albedo=False`` gives them
 independent coefficient vectors. A plain colour MoMo (BFM 2017) is a model whose
 ``diffuse`` part is its colour part and whose ``specular`` part is ``None``.
 
+The albedo parts may carry a per-vertex, per-channel residual variance (what
+the model cannot represent, estimated out of sample when it was built):
+:attr:`MorphableModel.albedo_residual_variance`.
+
 This module imports only :mod:`albedo_model.pca` and :mod:`albedo_model.errors`.
 """
 
@@ -181,6 +185,20 @@ class MorphableModel:
             for name in ("shape", "expression", "diffuse", "specular")
             if getattr(self, name) is not None
         }
+
+    @property
+    def albedo_residual_variance(self) -> dict[str, np.ndarray | None]:
+        """Per-vertex residual variance of the albedo parts, (n, 3) float64 or None.
+
+        Keys ``diffuse`` and ``specular`` (``None`` when the part is absent or
+        has no residual variance; see :attr:`PCAPart.residual_variance`).
+        """
+        out: dict[str, np.ndarray | None] = {}
+        for name in ("diffuse", "specular"):
+            part = getattr(self, name)
+            r = None if part is None else part.residual_variance
+            out[name] = None if r is None else r.astype(np.float64).reshape(-1, 3)
+        return out
 
     # -- landmarks -----------------------------------------------------------
     @cached_property

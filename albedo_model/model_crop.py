@@ -35,6 +35,11 @@ reader do not (the writer stores the basis as given). The restricted rows
   combinations of the training samples as the diffuse modes. At full rank this
   is exactly the transferred model built from the cropped training maps.
 
+A part's per-row residual variance (the out-of-span variance, when the model
+has one) is per vertex and channel, so the crop keeps its rows of the kept
+vertices unchanged: the span restricted to the kept rows is the restriction of
+the span, and so is what lies outside it.
+
 The SVD components are matched to the full model's (an assignment maximising
 ``|R_jj|``, each with ``R_jj > 0``), so component ``j`` of the crop is the one
 closest to component ``j`` of the full model (a mode that lies inside the crop
@@ -106,9 +111,11 @@ def _svd(scaled: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return q * sign, s, r * sign[:, None]
 
 
-def _part(part: PCAPart, mean: np.ndarray, basis: np.ndarray, variance: np.ndarray) -> PCAPart:
+def _part(part: PCAPart, rows: np.ndarray, mean: np.ndarray, basis: np.ndarray,
+          variance: np.ndarray) -> PCAPart:
+    residual = None if part.residual_variance is None else part.residual_variance[rows]
     return PCAPart(mean.astype(part.mean.dtype), basis.astype(part.basis.dtype),
-                   variance.astype(part.variance.dtype), part.noise_variance)
+                   variance.astype(part.variance.dtype), part.noise_variance, residual)
 
 
 def _restricted(part: PCAPart, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -120,7 +127,7 @@ def _restricted(part: PCAPart, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray
 def _orthonormal_crop(part: PCAPart, rows: np.ndarray) -> tuple[PCAPart, np.ndarray]:
     mean, scaled = _restricted(part, rows)
     q, s, r = _svd(scaled)
-    return _part(part, mean, q, s**2), r
+    return _part(part, rows, mean, q, s**2), r
 
 
 def _rotated_crop(part: PCAPart, rows: np.ndarray, rotation: np.ndarray) -> PCAPart:
@@ -128,7 +135,7 @@ def _rotated_crop(part: PCAPart, rows: np.ndarray, rotation: np.ndarray) -> PCAP
     mean, scaled = _restricted(part, rows)
     scaled = scaled @ rotation.T
     norms = np.linalg.norm(scaled, axis=0)
-    return _part(part, mean, scaled / np.where(norms > 0, norms, 1.0), norms**2)
+    return _part(part, rows, mean, scaled / np.where(norms > 0, norms, 1.0), norms**2)
 
 
 def _kept_vertices(model: MorphableModel, keep) -> np.ndarray:

@@ -4,6 +4,13 @@ A :class:`PCAPart` is the linear Gaussian model ``x = mean + U diag(sqrt(var)) c
 with standard-normal coefficients ``c`` (scalismo's discrete low-rank Gaussian
 process). Shape, expression, diffuse and specular albedo are all PCA parts.
 
+A part may carry a per-row *residual variance*: the variance of what its span
+cannot represent (probabilistic PCA's noise term, made per row, i.e. per
+vertex and channel), estimated out of sample when the model is built (see
+:mod:`pipeline.modelling.residual_variance`). It is ``None`` when unknown
+(AlbedoMM and BFM files do not have it). Rendering never uses it; posterior
+predictive intervals of the albedo do.
+
 This module imports only :mod:`albedo_model.errors`.
 """
 
@@ -25,6 +32,16 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def _checked_residual(residual: np.ndarray, dim: int) -> np.ndarray:
+    r = np.asarray(residual)
+    if r.shape != (dim,) or r.dtype.kind != "f":
+        raise InputError(f"PCA residual variance must be a float array of shape ({dim},), "
+                         f"got {r.dtype} {r.shape}")
+    if not np.all(np.isfinite(r)) or np.any(r < 0):
+        raise InputError("PCA residual variance must be finite and non-negative")
+    return r
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class PCAPart:
     """A PCA (PPCA) model over a flat data vector.
@@ -39,6 +56,9 @@ class PCAPart:
         Eigenvalues ``lambda``; a column's standard deviation is ``sqrt(lambda)``.
     noise_variance : float
         Isotropic PPCA noise variance (not used when rendering).
+    residual_variance : (d,) float array, optional
+        Per-row variance of the data outside the span (out-of-sample residual
+        of the model's rank); ``None`` when unknown. Not used when rendering.
 
     Notes
     -----
@@ -50,6 +70,7 @@ class PCAPart:
     basis: np.ndarray
     variance: np.ndarray
     noise_variance: float = 0.0
+    residual_variance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         """Validate the shapes and values and store read-only arrays."""
@@ -71,6 +92,9 @@ class PCAPart:
                 raise InputError(f"PCA {name} contains NaN or infinite values")
         if np.any(variance < 0):
             raise InputError("PCA variances must be non-negative")
+        if self.residual_variance is not None:
+            object.__setattr__(self, "residual_variance",
+                               _readonly(_checked_residual(self.residual_variance, mean.shape[0])))
         object.__setattr__(self, "mean", _readonly(mean))
         object.__setattr__(self, "basis", _readonly(basis))
         object.__setattr__(self, "variance", _readonly(variance))
@@ -206,29 +230,57 @@ class PCAPart:
         return self.mean.astype(np.float64) + c @ self.scaled_basis.T
 
     def truncate(self, k: int) -> PCAPart:
-        """Return the part restricted to its first ``k`` components."""
+        """Return the part restricted to its first ``k`` components.
+
+        A residual variance grows by the variance of the dropped components,
+        ``sum_{j >= k} U_ij^2 lambda_j`` per row: what they modelled is now
+        outside the span (their in-sample variance stands in for an
+        out-of-sample estimate at the smaller rank).
+        """
         if not 0 <= k <= self.rank:
             raise InputError(f"cannot truncate a rank-{self.rank} part to {k} components")
-        return PCAPart(self.mean, self.basis[:, :k], self.variance[:k], self.noise_variance)
+        residual = self.residual_variance
+        if residual is not None and k < self.rank:
+            dropped = (self.basis[:, k:].astype(np.float64) ** 2) @ self.variance[k:].astype(
+                np.float64)
+            residual = (residual.astype(np.float64) + dropped).astype(residual.dtype)
+        return PCAPart(self.mean, self.basis[:, :k], self.variance[:k], self.noise_variance,
+                       residual)
 
-    def marginal_std(self, *, include_noise: bool = False) -> np.ndarray:
+    def with_residual_variance(self, residual_variance: np.ndarray | None) -> PCAPart:
+        """Return the same part with ``residual_variance`` (``None`` removes it)."""
+        return dataclasses.replace(self, residual_variance=residual_variance)
+
+    def marginal_std(self, *, include_noise: bool = False,
+                     include_residual: bool = False) -> np.ndarray:
         """Per-row marginal standard deviation of the model distribution.
+
+        Parameters
+        ----------
+        include_noise : bool
+            Add the isotropic :attr:`noise_variance`.
+        include_residual : bool
+            Add the per-row :attr:`residual_variance` (nothing when it is ``None``).
 
         Returns
         -------
         (d,) float64 array
-            ``sqrt(sum_j U_ij^2 lambda_j [+ sigma^2])``; for an uncertainty map of
-            per-vertex colours reshape to (n, 3).
+            ``sqrt(sum_j U_ij^2 lambda_j [+ sigma^2] [+ r_i])``; for an uncertainty
+            map of per-vertex colours reshape to (n, 3).
         """
         var = (self.basis.astype(np.float64) ** 2) @ self.variance.astype(np.float64)
         if include_noise:
             var = var + self.noise_variance
+        if include_residual and self.residual_variance is not None:
+            var = var + self.residual_variance.astype(np.float64)
         return np.sqrt(var)
 
     def with_dtype(self, dtype: np.dtype) -> PCAPart:
-        """Return the same part with mean and basis cast to ``dtype``."""
+        """Return the same part with mean, basis (and residual variance) cast to ``dtype``."""
+        residual = None if self.residual_variance is None else self.residual_variance.astype(dtype)
         return PCAPart(
-            self.mean.astype(dtype), self.basis.astype(dtype), self.variance, self.noise_variance
+            self.mean.astype(dtype), self.basis.astype(dtype), self.variance, self.noise_variance,
+            residual,
         )
 
 

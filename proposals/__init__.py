@@ -3,17 +3,20 @@
 Every proposal is a pure callable ``(rng, state) -> Move`` that declares the
 parameter blocks it may change (``touches``) and returns the exact log
 transition ratio ``log q(x | x') - log q(x' | x)``. Modules: ``base`` (interface,
-mixtures), ``pose``, ``coefficients``, ``color_transform``, ``light``,
-``light_solver`` (the SH least-squares light), ``albedo_solver`` (the albedo
-conditional), ``schedule`` (the default mixtures).
+mixtures), ``pose``, ``coefficients``, ``color_transform`` (walks and the
+gain-light exchange), ``light``, ``light_solver`` (the SH least-squares light),
+``light_conditional`` (the SH light's exact conditional), ``albedo_solver`` (the
+albedo conditional), ``gradient`` (preconditioned MALA and HMC on the geometry),
+``schedule`` (the default mixtures).
 
 The package imports only :mod:`albedo_model` (camera, errors, params, sh). This file
-imports every module of the package but ``albedo_solver``.
+imports every module of the package but ``albedo_solver``, ``gradient`` and
+``light_conditional``.
 """
 
 from proposals.base import Mixture, Move, Proposal, ProposalState, leaves, mixture, no_move
 from proposals.coefficients import Caricature, CoefficientWalk
-from proposals.color_transform import ColorTransformWalk
+from proposals.color_transform import ColorTransformWalk, GainLightExchange
 from proposals.light import (
     SHBandMixer,
     SHColorShift,
@@ -38,7 +41,7 @@ from proposals.schedule import (
 __all__ = [
     "Move", "Proposal", "ProposalState", "Mixture", "mixture", "leaves", "no_move",
     "Rotation", "Translation", "Distance", "FocalScaling", "ImageCentered",
-    "CoefficientWalk", "Caricature", "ColorTransformWalk",
+    "CoefficientWalk", "Caricature", "ColorTransformWalk", "GainLightExchange",
     "SHIntensity", "SHBandMixer", "SHPerturbation", "SHColorShift", "SHSpatial",
     "SpecularExponentScaling", "SHLightSolver", "solve_sh_light",
     "CENTERING_LANDMARKS", "pose_proposal", "momo_proposal", "color_transform_proposal",

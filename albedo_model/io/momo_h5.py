@@ -19,7 +19,11 @@ fixed-length strings of shape (1,) or (), version 0.8 parts (columns
 ``vertices`` are the shape representer points (which need not equal the shape
 mean). Project extras live under ``/metadata/mcmcfit`` (ignored by scalismo):
 ``info`` (JSON: layout, shared_albedo, metadata dict, exact float64 noise
-variances) and ``symmetry`` (int32 (n,)).
+variances) and ``symmetry`` (int32 (n,)), and, for parts that have one, the
+per-row residual variance (:attr:`~albedo_model.pca.PCAPart.residual_variance`)
+as float32 (3n,) datasets ``residual_variance/<group>`` (``diffuseAlbedo``,
+``specularAlbedo``, ``color``); files without them (AlbedoMM, BFM) give parts
+whose residual variance is ``None``.
 
 Writing produces float32 arrays, so ``read(write(m))`` is bit-identical for
 models whose arrays are float32 (every model read from a file); float64 models
@@ -60,11 +64,12 @@ from albedo_model.pca import PCAPart
 
 __all__ = [
     "AlbedoPart", "open_h5", "h5_layout", "read_model_h5", "write_model_h5",
-    "read_albedo_part", "write_albedo_part", "INFO_PATH", "SYMMETRY_PATH",
+    "read_albedo_part", "write_albedo_part", "INFO_PATH", "SYMMETRY_PATH", "RESIDUAL_PATH",
 ]
 
 INFO_PATH = "/metadata/mcmcfit/info"
 SYMMETRY_PATH = "/metadata/mcmcfit/symmetry"
+RESIDUAL_PATH = "/metadata/mcmcfit/residual_variance"
 _INFO_FORMAT = "mcmcfit-model-info"
 _ALBEDO_GROUPS = ("diffuseAlbedo", "specularAlbedo")
 
@@ -181,6 +186,13 @@ def _read_part(reader: H5Reader, group: str, mesh: Representer, info: dict | Non
     exact = (info or {}).get("noise_variance", {}).get(group.strip("/"))
     if isinstance(exact, float) and np.float32(exact) == np.float32(part.noise_variance):
         part = PCAPart(part.mean, part.basis, part.variance, exact)
+    residual_name = f"{RESIDUAL_PATH}/{group.strip('/')}"
+    if reader.has(residual_name):
+        residual = reader.array(residual_name, ndim=1)
+        if residual.shape != (part.dim,) or np.any(residual < 0):
+            raise reader.error(f"{residual_name} must hold {part.dim} non-negative values, got "
+                               f"shape {residual.shape}")
+        part = part.with_residual_variance(residual)
     return part
 
 
@@ -310,6 +322,10 @@ def _write_file(
             write_text(ours, "info", json.dumps(info))
             if symmetry is not None:
                 ours.create_dataset("symmetry", data=np.asarray(symmetry, np.int32))
+            for group, part in parts.items():
+                if part.residual_variance is not None:
+                    ours.require_group("residual_variance").create_dataset(
+                        group, data=np.asarray(part.residual_variance, np.float32))
 
 
 def write_model_h5(

@@ -27,6 +27,11 @@ normals
     Vertex normals on the device.
 visibility
     Cast shadows of a directional light and visible landmarks.
+light_basis
+    The per-pixel light transport as a linear function of the SH light.
+differentiable
+    The render of the face pixels at fixed ray-cast triangles as a JAX function of
+    the geometry (for gradient moves).
 
 The package imports :mod:`albedo_model` (camera, errors, model, params, pca) and
 :mod:`albedo_model.shading` (effects, image_formation, interpolation); nothing above

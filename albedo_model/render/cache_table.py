@@ -36,6 +36,8 @@ albedo_system       light + COLOR_TRANSFORM                      the render, lin
                                                                  albedo coefficients
 light_data          raycast + ALBEDO, COLOR_TRANSFORM            normals, albedo, targets
                                                                  of the SH light solve
+light_system        raycast + ALBEDO, COLOR_TRANSFORM,           the render, linear in the
+                    SPECULAR_EXPONENT                            SH light
 ==================  ===========================================  =======================
 
 This module imports only :mod:`albedo_model.params`.
@@ -69,6 +71,8 @@ STAGE_DEPS: dict[str, Block] = {
     "albedo_system": (_GEOMETRY | _RAYS | Block.LIGHT | Block.SPECULAR_EXPONENT
                       | Block.COLOR_TRANSFORM),
     "light_data": _GEOMETRY | _RAYS | Block.ALBEDO | Block.COLOR_TRANSFORM,
+    "light_system": (_GEOMETRY | _RAYS | Block.ALBEDO | Block.COLOR_TRANSFORM
+                     | Block.SPECULAR_EXPONENT),
 }
 
 #: The single-bit blocks, in :class:`~albedo_model.params.Block` order.

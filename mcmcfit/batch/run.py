@@ -49,7 +49,8 @@ class BatchOptions:
     model : str
         Model file or ``"default"``.
     config : FitConfig
-        Settings of every fit (the ray-casting threads are set from ``threads``).
+        Settings of every fit (the ray-casting threads are set from ``threads``;
+        a worker with one thread runs the chains of its fit in its own process).
     seed : int
         Root seed; image seeds come from :func:`mcmcfit.batch.seeds.image_seed`.
     landmarks_dir, landmarks_glob : optional
@@ -131,7 +132,10 @@ def plan_batch(opts: BatchOptions) -> BatchPlan:
     items, skipped = discover(opts.input, exclude=[out], landmarks_dir=opts.landmarks_dir,
                               landmarks_glob=opts.landmarks_glob,
                               allow_face_box=opts.face_box is not None)
-    config = opts.config.replace(threads=min(2, max(1, opts.threads)))
+    # a worker with one thread runs its chains one after the other: the batch's
+    # processes already fill the cores (chains in parallel would oversubscribe them)
+    config = opts.config.replace(threads=min(2, max(1, opts.threads)),
+                                 parallel=opts.config.parallel and opts.threads > 1)
     tasks, complete = [], []
     model = _model_spec(opts.model)
     for item in items:

@@ -223,10 +223,10 @@ def plot_fit_bench(b: FitBench, path) -> None:
     plt.close(fig)
 
 
-def write_json(b: FitBench, path) -> None:
-    """Write :meth:`FitBench.to_dict` as JSON (atomically)."""
+def write_json(b: FitBench, path, *, extra: dict | None = None) -> None:
+    """Write :meth:`FitBench.to_dict` (updated with ``extra``) as JSON (atomically)."""
     from albedo_model.io.atomic import atomic_path
 
     with atomic_path(path, suffix=".json") as tmp:
         with open(tmp, "w") as f:
-            json.dump(b.to_dict(), f, indent=2, default=float)
+            json.dump({**b.to_dict(), **(extra or {})}, f, indent=2, default=float)

@@ -73,7 +73,27 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--case-seed", type=int, default=0,
                    help="seed of the synthetic demo case (default 0)")
     p.add_argument("--size", type=int, default=250, help="image size in pixels (default 250)")
+    p.add_argument("--mixing-cases", default="demo,yaw40-side-light", metavar="NAME,...",
+                   help="cases of the ESS-per-second comparison with the reference's "
+                   "random-walk schedule (default demo,yaw40-side-light; 'none' skips it)")
     p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
+
+
+def _format_mixing(figures: dict) -> str:
+    """Format the ESS-per-second table of :func:`mcmcfit.bench.mixing_bench.run_mixing_bench`."""
+    lines = ["effective samples per second of the kept draws (bulk-ESS over the monitored "
+             "quantities / wall time of the kept draws; same posterior, same steps):",
+             f"{'case':<18} {'schedule':<10} {'min ESS/s':>10} {'median ESS/s':>13} "
+             f"{'worst quantity':<24} {'max R-hat':>9} {'RMSE':>7} {'cov90':>6}"]
+    for case, f in figures.items():
+        for label in ("default", "reference"):
+            d = f[label]
+            lines.append(f"{case:<18} {label:<10} {d['min_ess_per_s']:>10.3f} "
+                         f"{d['median_ess_per_s']:>13.2f} {d['worst'][:24]:<24} "
+                         f"{d['max_rhat']:>9.3f} {d['rmse']:>7.4f} {d['coverage']:>6.1%}")
+        lines.append(f"{case:<18} ratio      {f['ratio_min_ess_per_s']:>10.1f}x "
+                     f"{f['ratio_median_ess_per_s']:>12.1f}x")
+    return "\n".join(lines)
 
 
 def register(subparsers) -> None:
@@ -142,6 +162,13 @@ def run_fit(args: argparse.Namespace) -> int:
     for out in (args.output, args.json):
         if out is not None and not Path(out).parent.exists():
             raise InputError(f"{Path(out).parent}: output folder does not exist")
+    cases = [c for c in args.mixing_cases.split(",") if c and c != "none"]
+    if cases:
+        from mcmcfit.bench.mixing_bench import CASES, run_mixing_bench
+
+        unknown = [c for c in cases if c not in CASES]
+        if unknown:
+            raise InputError(f"unknown --mixing-cases {unknown}; known: {sorted(CASES)}")
     quiet = args.quiet
     model = load_model_spec(args.model, progress=not quiet)
     last = {}
@@ -157,10 +184,17 @@ def run_fit(args: argparse.Namespace) -> int:
     bench = run_fit_bench(model, config=cfg, seed=args.seed, case_seed=args.case_seed,
                           size=args.size, checkpoints=args.checkpoints, progress=progress)
     print(format_fit_bench(bench))
+    mixing = None
+    if cases:
+        log = None if quiet else (lambda case, label: print(
+            f"mixing: {case} with the {label} schedule", file=sys.stderr, flush=True))
+        mixing = run_mixing_bench(model, config=cfg, seed=args.seed, cases=tuple(cases),
+                                  size=args.size, progress=log)
+        print(_format_mixing(mixing))
     if args.output is not None:
         plot_fit_bench(bench, args.output)
         print(f"wrote {args.output}")
     if args.json is not None:
-        write_json(bench, args.json)
+        write_json(bench, args.json, extra={"mixing": mixing} if mixing else None)
         print(f"wrote {args.json}")
     return 0

@@ -17,22 +17,35 @@ __all__ = ["register", "run", "add_schedule_arguments", "config_from_args", "cli
 
 
 def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "10000",
-                           landmark_default: str = "5000", chains_default: str = "1") -> None:
+                           landmark_default: str = "5000", chains_default: str = "2") -> None:
     """Options of the sampling schedule and the output (shared with ``mcmcfit demo``).
 
     The defaults shown are FitConfig's (not imported here: it loads JAX, and every CLI
     start builds this parser); ``test_cli_fit`` checks that they agree.
     """
-    p.add_argument("--steps", type=int, metavar="N",
-                   help=f"image-stage steps per chain (default {steps_default})")
+    p.add_argument("--max-steps", "--steps", dest="steps", type=int, metavar="N",
+                   help="most kept image-stage steps per chain; the fit stops earlier once "
+                   f"the chains have converged (default {steps_default})")
+    p.add_argument("--warmup-steps", type=int, metavar="N",
+                   help="image-stage warm-up steps per chain: step sizes adapted, noise "
+                   "model measured, never part of the posterior (default 30%% of --max-steps)")
+    p.add_argument("--time-budget", type=float, metavar="SECONDS",
+                   help="start no further round of kept draws after this many seconds "
+                   "(the fit then says whether it converged)")
     p.add_argument("--landmark-steps", type=int, metavar="N",
                    help=f"landmark-stage steps per chain (default {landmark_default})")
     p.add_argument("--chains", type=int, metavar="K",
-                   help=f"independent chains (default {chains_default})")
+                   help=f"independent chains (default {chains_default}), run in parallel "
+                   "processes: as many as cores")
+    p.add_argument("--serial", action="store_true",
+                   help="run the chains one after the other in this process (same chains)")
+    p.add_argument("--noise", choices=("estimated", "fixed"),
+                   help="image likelihood scale: measured per image from the residuals "
+                   "(default) or the configured sigma_px and temperature")
     p.add_argument("--seed", type=int, default=0, help="root seed of the fit (default 0)")
     p.add_argument("--config", metavar="F.json",
                    help="fit settings as JSON (a config.json of an earlier fit); "
-                   "--steps/--landmark-steps/--chains override it")
+                   "the schedule options override it")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--check-cache", action="store_true",
@@ -56,8 +69,13 @@ def config_from_args(args: argparse.Namespace, **defaults):
             raise InputError(f"{path}: not a fit config ({exc})") from None
     else:
         cfg = FitConfig(**defaults)
-    changes = {k: v for k, v in (("steps", args.steps), ("landmark_steps", args.landmark_steps),
-                                 ("chains", args.chains)) if v is not None}
+    options = (("steps", args.steps), ("landmark_steps", args.landmark_steps),
+               ("chains", args.chains), ("warmup_steps", getattr(args, "warmup_steps", None)),
+               ("time_budget", getattr(args, "time_budget", None)),
+               ("noise", getattr(args, "noise", None)))
+    changes = {k: v for k, v in options if v is not None}
+    if getattr(args, "serial", False):
+        changes["parallel"] = False
     if getattr(args, "check_cache", False):
         changes["check_cache"] = True
     return cfg.replace(**changes) if changes else cfg

@@ -6,10 +6,21 @@ config
     :class:`~mcmcfit.fitting.config.FitConfig`, the settings of a fit.
 initialisation
     Starting parameters: the camera for the image size and a pose guess.
+problem
+    :class:`~mcmcfit.fitting.problem.FitProblem`, what the chains share, and each
+    chain's targets under a noise model.
+landmark_starts
+    The landmark stage from several starts, the best continued.
 landmark_stage_emcee
     The alternative emcee landmark stage.
+adaptation
+    Warm-up adaptation of step sizes and the gradient moves' preconditioner.
+chain_session
+    One chain run in phases: landmarks, warm-up, noise model, kept draws.
+chain_pool, chain_worker
+    The chains in this process or in parallel worker processes.
 fit
-    :func:`~mcmcfit.fitting.fit.fit`: landmark stage, then image stage, per chain.
+    :func:`~mcmcfit.fitting.fit.fit`: the phases of all chains in lockstep, the stop rule.
 result
     :class:`~mcmcfit.fitting.result.FitResult`: chains, best and mean parameters, diagnostics.
 progress

@@ -25,20 +25,46 @@ class FitConfig:
     Attributes
     ----------
     steps : int
-        Image-stage (stage 2) steps per chain (reference: 10000); 0 skips stage 2.
+        Most kept image-stage steps per chain (``--max-steps``; reference: 10000
+        image steps); the stage ends earlier when the chains have converged
+        (``stop_when_converged``). 0 skips the image stage.
     landmark_steps : int
         Landmark-stage (stage 1) steps per chain (reference: 5000); with
         ``stage1="emcee"`` the number of log-density evaluations (iterations x
         walkers). 0 skips stage 1 (the pose guess is the start of stage 2).
     chains : int
-        Independent chains, run one after the other (seeds from ``SeedSequence.spawn``).
-        Default 1: the budget is 90 s per fit at 250² on a 2-core machine, and one
-        chain of the default schedule (5000 landmark + 10000 image steps) took
-        88 s there (stage 2 at ~120 steps/s, measured with other jobs running;
-        ``mcmcfit bench fit``). Two chains would take twice that: the ray caster
-        already uses both cores, so chains in parallel threads gain little.
-        Convergence is still checked with one chain: R-hat is split R-hat (the
-        chain's halves). Use ``chains=2`` or more for cross-chain R-hat.
+        Independent chains (seeds from ``SeedSequence.spawn``). Default 2, one
+        per core of a 2-core machine: cross-chain R-hat needs several chains.
+    parallel : bool
+        Run the chains in parallel worker processes (one ray-casting thread
+        each; :mod:`mcmcfit.fitting.chain_pool`); False runs them one after the
+        other in this process (the same chains, only slower).
+    warmup_steps : int or None
+        Image-stage warm-up steps per chain (step sizes adapted, noise model
+        measured; never part of the posterior). None: 30 % of ``steps`` (3000
+        for the default 10000). With 0 the configured noise model is kept.
+    adapt_window : int
+        Warm-up steps between two step-size adaptations.
+    adapt : bool
+        Adapt the step sizes during warm-up (False: the reference's fixed scales).
+    check_every : int
+        Kept steps per chain between two convergence checks.
+    stop_when_converged : bool
+        End the image stage at the first check where every monitored quantity
+        has rank-normalised split R-hat < 1.01 and bulk- and tail-ESS >= 400.
+    time_budget : float or None
+        Seconds (from the start of the fit) after which no further round of
+        kept draws is started (``--time-budget``); None: no limit.
+    noise : {"estimated", "fixed"}
+        The image likelihood's scale: measured per image from the residuals at
+        the end of the first warm-up phase (RMS residual as sigma, their
+        correlation area as the temperature; :mod:`mcmcfit.targets.noise_model`),
+        or ``sigma_px`` and ``temperature`` as given. The configured values are
+        the provisional model of the first warm-up phase either way.
+    noise_updates : int
+        With ``noise="estimated"``: how many times the scale is measured
+        during warm-up (at equal intervals; each time at the best state since
+        the last change, so that it follows the fit as it improves).
     thin : int
         Keep every ``thin``-th state as a sample (per-step logs are kept in full).
     sigma_px : float
@@ -60,13 +86,10 @@ class FitConfig:
     trim_fraction : float
         Fraction of face pixels kept by the trimmed likelihood.
     temperature : float >= 1
-        The image log likelihood is divided by it (a tempered, "power" likelihood
-        counting about N / T effective pixels). Model errors are smooth over the
-        face, so its pixels are far from independent, and the plain product
-        (T = 1, the reference's) gives albedo intervals that cover the truth far
-        too rarely (7-20 % of the 90 % intervals on synthetic faces of the default
-        model, against 73-95 % with T = 40 at 3000 steps, where the RMSE was no
-        worse); the tempered chain also accepts more and mixes faster.
+        With ``noise="fixed"``: the image log likelihood is divided by it (a
+        tempered likelihood counting about N / T effective pixels). Otherwise it
+        is only the provisional value of the first warm-up phase (broad, so the
+        chains move fast before the scale is measured).
     specular : bool
         Render the specular term (when the model has specular albedo).
     stage1 : {"mh", "emcee"}
@@ -94,13 +117,27 @@ class FitConfig:
     albedo_weight : float
         Top-level weight of the albedo conditional proposal (a Gibbs-like draw of
         all albedo coefficients from their Gaussian conditional; 0 turns it off).
+    light_conditional_weight : float
+        Top-level weight of the SH light's exact conditional draw (over all
+        face pixels; replaces the least-squares solver proposal; 0 turns it off
+        and restores the solver).
+    mala_weight : float
+        Top-level weight of the gradient move (preconditioned MALA on shape,
+        expression, pose and focal length together; :mod:`proposals.gradient`).
+        Default 0 (off): measured on the demo case it did not improve the
+        chains' R-hat or ESS per second (a diagonal preconditioner misses the
+        strong shape-pose correlations, and a gradient costs 2-4 render steps
+        plus ~8 s of compilation per process); try 0.5.
+    mala_step : float
+        Its initial step size (adapted in warm-up towards 57 % acceptance; the
+        preconditioner is set from the warm-up draws).
     albedo_points : int
-        Face pixels the albedo conditional reads (a fixed random subset, each
-        standing for face pixels / albedo_points of them). Fewer are cheaper
-        but a poorer match of the conditional; with the tempered likelihood
-        (``temperature``) 4000 of ~18000 still match well.
+        Face pixels the albedo conditional reads at most (a fixed random subset
+        beyond that, each standing for face pixels / albedo_points of them).
+        Default: all of them, so that the draw is the exact conditional.
     burn_fraction : float
-        Leading fraction of stage 2 dropped for the mean parameters and diagnostics.
+        Leading fraction of the kept draws dropped as well (default 0: the
+        warm-up is separate).
     face_box_scale_sigma, face_box_centre_sigma : float
         Face-box likelihood scales (log scale; fraction of the box diagonal).
     threads : int or None
@@ -114,7 +151,16 @@ class FitConfig:
 
     steps: int = 10000
     landmark_steps: int = 5000
-    chains: int = 1
+    chains: int = 2
+    parallel: bool = True
+    warmup_steps: int | None = None
+    adapt_window: int = 250
+    adapt: bool = True
+    check_every: int = 1000
+    stop_when_converged: bool = True
+    time_budget: float | None = None
+    noise: str = "estimated"
+    noise_updates: int = 3
     thin: int = 10
     sigma_px: float = 0.043
     sigma_lm: float = 4.0
@@ -138,8 +184,11 @@ class FitConfig:
     solver_sigma: float = 0.005
     specular_weight: float = 0.1
     albedo_weight: float = 0.25
-    albedo_points: int = 4000
-    burn_fraction: float = 0.25
+    light_conditional_weight: float = 0.5
+    mala_weight: float = 0.0
+    mala_step: float = 0.05
+    albedo_points: int = 1_000_000
+    burn_fraction: float = 0.0
     face_box_scale_sigma: float = 0.1
     face_box_centre_sigma: float = 0.1
     threads: int | None = None
@@ -155,21 +204,27 @@ class FitConfig:
 
         for name in ("steps", "landmark_steps", "n_shape", "n_albedo", "n_expression"):
             count(name)
-        for name in ("chains", "thin", "bins", "solver_points", "albedo_points"):
+        count("noise_updates")
+        if self.warmup_steps is not None:
+            count("warmup_steps")
+        for name in ("chains", "thin", "bins", "solver_points", "albedo_points", "adapt_window",
+                     "check_every"):
             count(name, 1)
         count("emcee_walkers", 2 * 8 + 2)
-        for name in ("sigma_px", "sigma_lm", "solver_sigma", "face_box_scale_sigma",
+        for name in ("sigma_px", "sigma_lm", "solver_sigma", "mala_step", "face_box_scale_sigma",
                      "face_box_centre_sigma"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise InputError(f"fit config: {name} must be > 0, got {v!r}")
-        for name in ("stage1_shape_weight", "specular_weight", "albedo_weight"):
+        for name in ("stage1_shape_weight", "specular_weight", "albedo_weight",
+                     "light_conditional_weight", "mala_weight"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise InputError(f"fit config: {name} must be >= 0, got {v!r}")
         choices = {"likelihood": IMAGE_LIKELIHOODS, "stage1": ("mh", "emcee"),
                    "background": ("smoothed", "histogram"),
-                   "init_pose": ("lsq", "similarity"), "init_light": ("solve", "frontal")}
+                   "init_pose": ("lsq", "similarity"), "init_light": ("solve", "frontal"),
+                   "noise": ("estimated", "fixed")}
         for name, allowed in choices.items():
             if getattr(self, name) not in allowed:
                 raise InputError(f"fit config: {name} must be one of {allowed}, "
@@ -186,8 +241,17 @@ class FitConfig:
             raise InputError(f"fit config: burn_fraction must be in [0, 1), got {self.burn_fraction}")
         if self.block_size is not None and self.block_size < 1:
             raise InputError(f"fit config: block_size must be >= 1 or None, got {self.block_size}")
+        if self.time_budget is not None and not (
+                isinstance(self.time_budget, (int, float)) and self.time_budget > 0):
+            raise InputError(f"fit config: time_budget must be > 0 seconds or None, "
+                             f"got {self.time_budget!r}")
         if self.threads not in (None, 1, 2):
             raise InputError(f"fit config: threads must be 1, 2 or None, got {self.threads}")
+
+    @property
+    def warmup(self) -> int:
+        """Warm-up steps per chain (``warmup_steps``, or 30 % of ``steps`` when None)."""
+        return (self.steps * 3) // 10 if self.warmup_steps is None else self.warmup_steps
 
     def to_dict(self) -> dict:
         """Plain JSON-able dict (``prior`` nested)."""

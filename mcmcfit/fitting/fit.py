@@ -1,21 +1,30 @@
-"""One fit of a face image: landmark stage, then image stage, for several chains.
+"""One fit of a face image: the phases of its chains, in lockstep, and the stop rule.
 
-:func:`fit` wires the pieces: targets (:mod:`mcmcfit.targets.image`,
-:mod:`mcmcfit.targets.landmarks`), prior, renderer, the default proposal
-schedules (:mod:`proposals.schedule`, with the SH light solver's and the
-albedo conditional's data read from the accepted render), the filtered MH
-sampler and its recorder, and the diagnostics. Chains run one after the
-other in this process and share one renderer (whose compiled shading is
-cached per effect set across fits).
+:func:`fit` validates the inputs, places the mean face from the landmarks (or
+face box), and drives the chains (:mod:`mcmcfit.fitting.chain_session`, run
+in parallel worker processes by :mod:`mcmcfit.fitting.chain_pool`, one per
+chain):
 
-This module imports :mod:`albedo_model` (errors, model, params, render.renderer),
-:mod:`proposals` (base, light_solver, schedule), the other :mod:`mcmcfit.fitting`
-modules but progress, and :mod:`mcmcfit.sampling`, :mod:`mcmcfit.targets` (face,
-image, landmarks, priors) and :mod:`mcmcfit.proposal_data` (albedo, light).
+1. landmark stage (prior x landmarks, no render; several starts per chain);
+2. warm-up in ``noise_updates + 1`` phases: the image stage with step sizes
+   adapted per window (:mod:`mcmcfit.fitting.adaptation`); the first phase
+   under the configured (provisional) noise model; after each phase but the
+   last, every chain measures the noise model at its best state and the
+   driver sets the median on all of them, so that every chain targets one
+   posterior (:mod:`mcmcfit.targets.noise_model`; ``noise="fixed"`` skips it);
+3. kept draws in rounds of ``check_every`` steps, until the convergence rule
+   holds on every monitored quantity (:mod:`mcmcfit.sampling.convergence`),
+   ``steps`` kept steps per chain, or ``time_budget`` seconds.
+
+This module imports :mod:`albedo_model` (errors, model, params), the
+:mod:`mcmcfit.fitting` modules chain_pool, config, initialisation, problem and
+result, :mod:`mcmcfit.sampling` (chain, convergence, diagnostics, param_vector)
+and :mod:`mcmcfit.targets` (landmarks, noise_model).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import warnings
@@ -26,95 +35,30 @@ from threadpoolctl import threadpool_limits
 
 from albedo_model.errors import InputError
 from albedo_model.model import MorphableModel
-from albedo_model.params import ImageSize, RenderParameter, SHLight
-from albedo_model.render.renderer import Renderer
-from mcmcfit.proposal_data.albedo import RenderAlbedoData
-from mcmcfit.fitting.cache_check import CacheCheck
-from mcmcfit.sampling.chain import (
-    BestSample, ChainRecord, ChainRecorder, ChainResult, stacked_samples,
-)
-from mcmcfit.sampling.convergence import convergence
-from mcmcfit.sampling.diagnostics import chain_diagnostics
-from mcmcfit.targets.face import FaceTarget
+from albedo_model.params import RenderParameter
+from mcmcfit.fitting.chain_pool import chain_pool
 from mcmcfit.fitting.config import FitConfig
-from mcmcfit.fitting.result import FitResult, sum_acceptance
-from mcmcfit.targets.image import ImageLikelihood, prepare_image_target
-from mcmcfit.targets.landmarks import FaceBoxTarget, LandmarkGeometry, LandmarkTarget
-from mcmcfit.proposal_data.light import RenderLightData
-from mcmcfit.sampling.param_vector import ParamLayout
 from mcmcfit.fitting.initialisation import (
     check_fit_inputs, initial_params, pose_from_face_box, pose_from_landmarks,
 )
-from mcmcfit.targets.priors import LogPrior
-from mcmcfit.sampling.kernel import init, run
-from mcmcfit.fitting.landmark_stage_emcee import run_emcee_stage
-from proposals.base import ProposalState
-from proposals.light_solver import solve_sh_light
-from proposals.schedule import CENTERING_LANDMARKS, default_image_proposal, landmark_stage_proposal
+from mcmcfit.fitting.problem import FitProblem, landmark_factor, provisional_noise
+from mcmcfit.fitting.result import FitResult, sum_acceptance
+from mcmcfit.sampling.chain import BestSample, ChainRecord, ChainResult, stacked_samples
+from mcmcfit.sampling.convergence import convergence
+from mcmcfit.sampling.derived import RegionAlbedo, region_albedo_basis
+from mcmcfit.sampling.diagnostics import chain_diagnostics
+from mcmcfit.sampling.param_vector import ParamLayout
+from mcmcfit.targets.landmarks import FaceBoxTarget, LandmarkGeometry, LandmarkTarget
+from mcmcfit.targets.noise_model import NoiseModel
 
-__all__ = ["Progress", "fit", "run_stage"]
+__all__ = ["Progress", "fit"]
 
 #: ``progress(stage, chain, done, total)``: stage is "landmarks" or "image", chain the
 #: 0-based chain index, done/total the steps of that stage of that chain.
 Progress = Callable[[str, int, int, int], None]
 
-_PROGRESS_EVERY = 25
 #: Images whose brightest value is below half an 8-bit step are "all black".
 _BLACK = 0.5 / 255.0
-
-
-def run_stage(rng: np.random.Generator, start: RenderParameter, target: FaceTarget, proposal,
-              n_steps: int, *, image: bool, thin: int, layout: ParamLayout,
-              progress: Callable[[int, int], None] | None = None,
-              check: CacheCheck | None = None) -> ChainRecord:
-    """Run one MH stage from ``start`` and return its record (timed).
-
-    Parameters
-    ----------
-    rng : numpy Generator
-    start : RenderParameter
-    target : FaceTarget
-    proposal : Proposal
-    n_steps : int
-    image : bool
-        The image stage (False: the landmark stage, no render).
-    thin : int
-        Keep every ``thin``-th sample.
-    layout : ParamLayout
-        Columns of the kept samples.
-    progress : callable ``(done, total)``, optional
-    check : CacheCheck, optional
-        ``--check-cache``: compare every cached product with a fresh computation
-        after each step (raises :class:`~mcmcfit.fitting.cache_check.CacheMismatchError`).
-    """
-    t0 = time.perf_counter()
-    state = init(start, target, image=image)
-    recorder = ChainRecorder(layout, n_steps, thin, state, stage="image" if image else "landmarks")
-    if check is not None:
-        check(-1, state)
-
-    def callback(i, s, info):
-        recorder(i, s, info)
-        if check is not None:
-            check(i, s, info)
-        if progress is not None and ((i + 1) % _PROGRESS_EVERY == 0 or i + 1 == n_steps):
-            progress(i + 1, n_steps)
-
-    run(rng, state, target, proposal, n_steps, image=image, callback=callback)
-    return recorder.record(time.perf_counter() - t0)
-
-
-def _with_solved_light(target: FaceTarget, params: RenderParameter,
-                       data: RenderLightData) -> RenderParameter:
-    """``params`` with the least-squares SH light if it renders the target better."""
-    rendered = target.init_render(params)
-    normals, albedo, colours = data(ProposalState(params, rendered))
-    if normals.shape[0] < 20:
-        return params
-    solved = params._replace(environment_map=SHLight(solve_sh_light(normals, albedo, colours)))
-    before = target.log_lik_image(rendered)
-    after = target.log_lik_image(target.init_render(solved))
-    return solved if after > before else params
 
 
 def _best(samples: list[BestSample], key) -> BestSample:
@@ -183,15 +127,14 @@ def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConf
     check_fit_inputs(w, h, landmarks=landmarks, face_box=face_box,
                      model_landmarks=model.landmark_vertices)
     geometry = LandmarkGeometry(model, threads=1)
-    factor: LandmarkTarget | FaceBoxTarget | None = None
     params0 = initial_params(model, w, h, n_shape=cfg.n_shape, n_albedo=cfg.n_albedo,
                              n_expression=cfg.n_expression, model_uri=model_uri)
+    problem = FitProblem(img, landmarks, face_box, landmark_sigma, model, cfg, params0,
+                         ParamLayout.for_params(params0))
+    factor = landmark_factor(problem, geometry)
     used: tuple[str, ...] = ()
     unknown: tuple[str, ...] = ()
-    if landmarks is not None:
-        factor = LandmarkTarget(geometry, landmarks, sigma=cfg.sigma_lm, image_size=ImageSize(w, h),
-                                hidden_probability=cfg.lm_hidden_probability,
-                                sigma_factors=landmark_sigma)
+    if isinstance(factor, LandmarkTarget):
         used, unknown = tuple(factor.names), tuple(factor.unknown)
         if unknown:
             warnings.warn(f"ignoring {len(unknown)} landmark(s) the model does not have: "
@@ -199,82 +142,96 @@ def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConf
         if len(factor.names) >= 2:
             params0 = pose_from_landmarks(geometry, factor.names, factor.observed, params0,
                                           refine=cfg.init_pose == "lsq")
-    elif face_box is not None:
-        factor = FaceBoxTarget(geometry, face_box, scale_log_sigma=cfg.face_box_scale_sigma,
-                               centre_sigma=cfg.face_box_centre_sigma)
+    elif isinstance(factor, FaceBoxTarget):
         params0 = pose_from_face_box(geometry, face_box, params0)
-    layout = ParamLayout.for_params(params0)
-    prior = LogPrior(cfg.prior)
-    renderer = Renderer(model, specular=cfg.specular, threads=cfg.threads)
-    smooth = cfg.sigma_px if cfg.background == "smoothed" else None
-    image_target = prepare_image_target(img, bins=cfg.bins, smooth_sigma=smooth)
-    image_lik = ImageLikelihood(image_target, kind=cfg.likelihood, sigma=cfg.sigma_px,
-                                trim_fraction=cfg.trim_fraction, temperature=cfg.temperature)
-    face = FaceTarget(renderer, image_lik, factor, prior)
-    lm_only = FaceTarget(renderer, None, factor, prior)
-    centring = geometry.point if all(n in geometry.names for n in CENTERING_LANDMARKS) else None
-    specular_weight = cfg.specular_weight if renderer.specular else 0.0
-    stage1_proposal = landmark_stage_proposal(centring, shape_weight=cfg.stage1_shape_weight,
-                                              block_size=cfg.block_size)
-    setup_s = time.perf_counter() - t_start
-
-    chains: list[ChainResult] = []
-    lm_init: list[RenderParameter] = []
+    problem = dataclasses.replace(problem, start=params0)
+    layout = problem.layout
     root = np.random.SeedSequence(seed)
-    for ci, ss in enumerate(root.spawn(cfg.chains)):
-        rng = np.random.default_rng(ss)
-        light_data = RenderLightData(renderer, image_target.linear,
-                                     n_points=cfg.solver_points, seed=int(ss.generate_state(1)[0]))
-        albedo_data = RenderAlbedoData(renderer, image_target.linear,
-                                       n_points=cfg.albedo_points,
-                                       seed=int(ss.generate_state(2)[1]))
-        image_proposal = default_image_proposal(
-            centring, solver_data=light_data, specular_weight=specular_weight,
-            block_size=cfg.block_size, solver_sigma=cfg.solver_sigma,
-            albedo_data=albedo_data if cfg.albedo_weight > 0 else None,
-            albedo_weight=cfg.albedo_weight,
-            pixel_sigma=cfg.sigma_px * math.sqrt(cfg.temperature))
+    seeds = root.spawn(cfg.chains)
+    regions = region_albedo_basis(model)
+    pool = chain_pool(problem, seeds, processes=cfg.parallel)
+    setup_s = time.perf_counter() - t_start
+    try:
+        results, noise, stopping = _drive(pool, cfg, layout, t_start, progress, regions)
+    finally:
+        pool.close()
+    lm_init = [r.stage1.best_posterior.params if r.stage1 is not None else params0
+               for r in results]
+    return _assemble(cfg, seed, layout, params0, results, lm_init, used, unknown,
+                     setup_s, time.perf_counter() - t_start, noise, stopping, regions)
 
-        def report(stage: str, ci: int = ci):
-            if progress is None:
-                return None
-            return lambda done, total: progress(stage, ci, done, total)
 
-        rec1 = None
-        start = params0
-        if factor is not None and cfg.landmark_steps > 0:
-            if cfg.stage1 == "emcee":
-                walkers = cfg.emcee_walkers
-                rec1 = run_emcee_stage(rng, params0, prior, lm_only.log_lik_landmarks, layout,
-                                       n_steps=max(1, cfg.landmark_steps // walkers),
-                                       n_walkers=walkers, thin=max(1, cfg.thin // walkers),
-                                       progress=report("landmarks"))
-            else:
-                check1 = CacheCheck(lm_only, stage="landmarks") if cfg.check_cache else None
-                rec1 = run_stage(rng, params0, lm_only, stage1_proposal, cfg.landmark_steps,
-                                 image=False, thin=cfg.thin, layout=layout,
-                                 progress=report("landmarks"), check=check1)
-            start = rec1.best_posterior.params
-        lm_init.append(start)
-        rec2 = None
-        if cfg.steps > 0:
-            if cfg.init_light == "solve":
-                start = _with_solved_light(face, start, light_data)
-            check2 = CacheCheck(face, (("albedo conditional", albedo_data),
-                                       ("SH solver", light_data))) if cfg.check_cache else None
-            rec2 = run_stage(rng, start, face, image_proposal, cfg.steps, image=True,
-                             thin=cfg.thin, layout=layout, progress=report("image"),
-                             check=check2)
-        chains.append(ChainResult(ci, int(root.entropy), tuple(int(k) for k in ss.spawn_key),
-                                  rec1, rec2))
+def _report(progress: Progress | None, stage: str, n_chains: int, done: int, total: int) -> None:
+    if progress is not None:
+        for ci in range(n_chains):
+            progress(stage, ci, done, total)
 
-    return _assemble(cfg, seed, layout, params0, chains, lm_init, used, unknown,
-                     setup_s, time.perf_counter() - t_start)
+
+def _drive(pool, cfg: FitConfig, layout: ParamLayout, t_start: float,
+           progress: Progress | None,
+           regions: RegionAlbedo | None = None) -> tuple[list[ChainResult], NoiseModel, dict]:
+    """Run the phases of every chain in lockstep; return the chains, noise model and stop reason."""
+    k = cfg.chains
+    if cfg.landmark_steps > 0:
+        pool.call("landmarks")
+        _report(progress, "landmarks", k, cfg.landmark_steps, cfg.landmark_steps)
+    noise = provisional_noise(cfg)
+    stopping = {"reason": "no image stage", "kept_steps": 0, "checks": []}
+    if cfg.steps == 0:
+        return pool.call("finish"), noise, stopping
+    pool.call("begin_image")
+    warm = cfg.warmup
+    total = warm + cfg.steps
+    phases = cfg.noise_updates + 1 if cfg.noise == "estimated" and warm > 0 else 1
+    done = 0
+    for phase in range(phases):
+        n = (warm * (phase + 1)) // phases - done
+        if n:
+            pool.call("warmup", n, window=cfg.adapt_window, adapt=cfg.adapt)
+            done += n
+            _report(progress, "image", k, done, total)
+        if phase < phases - 1:
+            noise = _pooled(pool.call("measure_noise"))
+            pool.call("set_noise", noise)
+    kept = 0
+    reason = "max steps"
+    while kept < cfg.steps:
+        n = min(cfg.check_every, cfg.steps - kept)
+        elapsed = time.perf_counter() - t_start
+        if cfg.time_budget is not None and kept > 0:
+            per_step = (elapsed - stopping.get("kept_start", elapsed)) / kept
+            if elapsed + per_step * n > cfg.time_budget:
+                reason = "time budget"
+                break
+        stopping.setdefault("kept_start", elapsed)
+        records = pool.call("draw", n)
+        kept += n
+        _report(progress, "image", k, warm + kept, total)
+        verdict = convergence(records, burn_fraction=cfg.burn_fraction, model=regions)
+        stopping["checks"].append({"kept_steps": kept, "seconds": time.perf_counter() - t_start,
+                                   "max_rhat": verdict.get("max_rhat"),
+                                   "min_ess_bulk": verdict.get("min_ess_bulk"),
+                                   "min_ess_tail": verdict.get("min_ess_tail")})
+        if cfg.stop_when_converged and verdict.get("converged"):
+            reason = "converged"
+            break
+    stopping.pop("kept_start", None)
+    stopping.update(reason=reason, kept_steps=kept, warmup_steps=warm)
+    return pool.call("finish"), noise, stopping
+
+
+def _pooled(noises: list[NoiseModel]) -> NoiseModel:
+    """One noise model for every chain: the median of their estimates (the same posterior for all)."""
+    sigma = float(np.median([n.sigma for n in noises]))
+    temperature = float(np.median([n.temperature for n in noises]))
+    n_face = int(np.median([n.n_face for n in noises]))
+    return NoiseModel(sigma, temperature, "estimated", n_face, n_face / temperature)
 
 
 def _assemble(cfg: FitConfig, seed: int, layout: ParamLayout, template: RenderParameter,
               chains: list[ChainResult], lm_init: list[RenderParameter], used, unknown,
-              setup_s: float, total_s: float) -> FitResult:
+              setup_s: float, total_s: float, noise: NoiseModel, stopping: dict,
+              regions: RegionAlbedo | None = None) -> FitResult:
     rec1 = [c.stage1 for c in chains if c.stage1 is not None]
     rec2 = [c.stage2 for c in chains if c.stage2 is not None]
     last = rec2 or rec1
@@ -300,12 +257,15 @@ def _assemble(cfg: FitConfig, seed: int, layout: ParamLayout, template: RenderPa
                "stage1_steps_per_s": n1 / s1 if s1 > 0 else math.nan,
                "stage2_steps_per_s": n2 / s2 if s2 > 0 else math.nan}
     diagnostics = {"stage1": chain_diagnostics(rec1, burn_fraction=cfg.burn_fraction),
-                   "stage2": chain_diagnostics(rec2, burn_fraction=cfg.burn_fraction)}
+                   "stage2": chain_diagnostics(rec2, burn_fraction=cfg.burn_fraction,
+                                               model=regions)}
     return FitResult(cfg, int(seed), layout, template, chains, best, best_post, lm_init,
                      mean_params, sum_acceptance(rec2), sum_acceptance(rec1), timings,
                      diagnostics, tuple(used), tuple(unknown),
                      {"stage1": _sum_seconds(rec1), "stage2": _sum_seconds(rec2)},
-                     convergence(rec2, burn_fraction=cfg.burn_fraction) if rec2 else {})
+                     convergence(rec2, burn_fraction=cfg.burn_fraction, model=regions)
+                     if rec2 else {},
+                     noise.to_dict(), stopping)
 
 
 def _sum_seconds(records: list[ChainRecord]) -> dict[str, float]:

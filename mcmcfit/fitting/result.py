@@ -16,8 +16,9 @@ import numpy as np
 from albedo_model.errors import InputError
 from albedo_model.params import RenderParameter
 from mcmcfit.sampling.chain import (
-    BestSample, ChainRecord, ChainResult, ProposalStats, stacked_samples, write_chains_h5,
+    BestSample, ChainRecord, ChainResult, ProposalStats, stacked_samples,
 )
+from mcmcfit.sampling.chain_file import write_chains_h5
 from mcmcfit.sampling.diagnostics import SeriesDiagnostics
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.sampling.param_vector import ParamLayout
@@ -78,8 +79,9 @@ class FitResult:
         (wall), ``stage1_steps_per_s``, ``stage2_steps_per_s``.
     diagnostics : dict
         ``{"stage1": {...}, "stage2": {...}}`` of
-        :func:`mcmcfit.sampling.diagnostics.chain_diagnostics` (per-step log posterior,
-        image log likelihood, a few parameter columns).
+        :func:`mcmcfit.sampling.diagnostics.chain_diagnostics` (rank-normalised split
+        R-hat, bulk- and tail-ESS of the log densities, every moving parameter and
+        the regions' mean albedo).
     landmarks_used, landmarks_unknown : tuple of str
         Target landmarks that took part, and those the model does not have.
     proposal_seconds : dict
@@ -88,6 +90,14 @@ class FitResult:
     convergence : dict
         The image stage's convergence verdict
         (:func:`mcmcfit.sampling.convergence.convergence`; empty without stage 2).
+    noise : dict
+        The image likelihood's noise model of the kept draws
+        (:meth:`mcmcfit.targets.noise_model.NoiseModel.to_dict`: sigma, temperature,
+        how it was chosen).
+    stopping : dict
+        Why the image stage ended (``reason``: "converged", "max steps", "time
+        budget"), kept and warm-up steps per chain, and every convergence check
+        (kept steps, seconds since the start, max R-hat, min bulk/tail ESS).
     """
 
     config: FitConfig
@@ -107,6 +117,8 @@ class FitResult:
     landmarks_unknown: tuple[str, ...] = ()
     proposal_seconds: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
     convergence: dict = dataclasses.field(default_factory=dict)
+    noise: dict = dataclasses.field(default_factory=dict)
+    stopping: dict = dataclasses.field(default_factory=dict)
 
     def records(self, stage: int = 2) -> list[ChainRecord]:
         """Return the ChainRecords of one stage (1 or 2), one per chain that ran it."""
@@ -138,7 +150,7 @@ class FitResult:
         return self.get_chain(stage, discard=discard)[..., self.layout.index(name)]
 
     def save_chain(self, path: str | os.PathLike) -> None:
-        """Write ``chain.h5`` (see :func:`mcmcfit.sampling.chain.write_chains_h5`), with the config JSON."""
+        """Write ``chain.h5`` (see :func:`mcmcfit.sampling.chain_file.write_chains_h5`), with the config JSON."""
         write_chains_h5(path, self.chains, self.layout, self.template,
                         attrs={"config": self.config.to_json(), "seed": str(self.seed)})
 
@@ -163,4 +175,6 @@ class FitResult:
             "proposal_seconds": {k: dict(v) for k, v in self.proposal_seconds.items()},
             "landmarks_used": list(self.landmarks_used),
             "landmarks_unknown": list(self.landmarks_unknown),
+            "noise_model": dict(self.noise),
+            "stopping": dict(self.stopping),
         }

@@ -11,12 +11,14 @@ and the HTML report. The pieces live in small modules: posterior albedo
 (:mod:`~mcmcfit.outputs.figures`), ``summary.json``
 (:mod:`~mcmcfit.outputs.summary`), ``report.html``
 (:mod:`~mcmcfit.outputs.report`, styled by :mod:`~mcmcfit.outputs.html_style`)
-and errors against a known truth (:mod:`~mcmcfit.outputs.truth`, with the
-scores of :mod:`~mcmcfit.outputs.accuracy`).
+errors against a known truth (:mod:`~mcmcfit.outputs.truth`, with the
+scores of :mod:`~mcmcfit.outputs.accuracy`) and the ArviZ ``InferenceData``
+``posterior.nc`` (:mod:`~mcmcfit.outputs.inference_data`).
 
 The package imports :mod:`albedo_model` (camera, errors, model, params, pca,
 io.image_io, io.mesh_export, io.rps, render.renderer), :mod:`mcmcfit.fitting.result`,
-:mod:`mcmcfit.sampling.param_vector` and :mod:`mcmcfit.targets.landmarks`. This file
+:mod:`mcmcfit.sampling` (chain, derived, diagnostics, param_vector) and
+:mod:`mcmcfit.targets.landmarks`. This file
 imports :mod:`mcmcfit.outputs.folder` on first use of its names.
 """
 

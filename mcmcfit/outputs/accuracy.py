@@ -1,6 +1,11 @@
 """Scores of a fit against a known truth: pose angle error, albedo RMSE and interval coverage.
 
-This module imports :mod:`albedo_model` (camera, model, params),
+Coverage is reported for both kinds of interval (:mod:`mcmcfit.outputs.posterior`):
+the posterior predictive one (coefficients + the model's residual variance),
+which is the headline ``coverage`` when the model has a residual variance, and
+the coefficient-only one, always.
+
+This module imports :mod:`albedo_model` (camera, model, params, pca),
 :mod:`mcmcfit.outputs.posterior` and :mod:`mcmcfit.sampling.param_vector`.
 """
 
@@ -14,10 +19,12 @@ import numpy as np
 from albedo_model.camera import euler_rotation
 from albedo_model.model import MorphableModel
 from albedo_model.params import Pose
+from albedo_model.pca import PCAPart
 from mcmcfit.sampling.param_vector import ParamLayout
-from mcmcfit.outputs.posterior import albedo_posterior
+from mcmcfit.outputs.posterior import AlbedoPosterior, albedo_posterior
 
-__all__ = ["AlbedoScore", "albedo_score", "albedo_columns", "interval_error", "pose_error_deg"]
+__all__ = ["AlbedoScore", "albedo_score", "albedo_columns", "interval_error",
+           "posterior_interval_error", "pose_error_deg"]
 
 
 def pose_error_deg(pose: Pose, truth: Pose) -> float:
@@ -36,16 +43,25 @@ class AlbedoScore(NamedTuple):
     rmse : float
         Root mean square error over visible vertices and channels (linear sRGB).
     coverage : float
-        Fraction of (vertex, channel) values inside the central interval.
+        Fraction of (vertex, channel) values inside the central interval: the
+        predictive one when the model has a residual variance (``predictive``),
+        else the coefficient-only one.
     level : float
         Probability of that interval.
     n_samples : int
+    coverage_coefficients : float
+        Coverage of the coefficient-only interval (equal to ``coverage`` when
+        not ``predictive``).
+    predictive : bool
+        Whether ``coverage`` is that of posterior predictive intervals.
     """
 
     rmse: float
     coverage: float
     level: float
     n_samples: int
+    coverage_coefficients: float = math.nan
+    predictive: bool = False
 
 
 def albedo_columns(layout: ParamLayout) -> slice:
@@ -81,6 +97,41 @@ def interval_error(mean, lo, hi, true, visible) -> dict:
             "coverage": float(np.mean(inside))}
 
 
+def posterior_interval_error(part: AlbedoPosterior, true, visible) -> dict:
+    """Errors of one part's posterior against the truth, with both kinds of coverage.
+
+    Parameters
+    ----------
+    part : AlbedoPosterior
+    true : (n, 3) float array
+    visible : (n,) bool
+
+    Returns
+    -------
+    dict
+        :func:`interval_error`'s ``rmse``, ``mean_abs`` and ``coverage`` (of the
+        part's own intervals: predictive when ``part.predictive``), plus
+        ``coverage_coefficients`` (coefficient-only intervals),
+        ``coverage_predictive`` (None when the model has no residual variance)
+        and ``predictive``.
+    """
+    out = interval_error(part.mean, part.lo, part.hi, true, visible)
+    only = part.coefficient_only()
+    coef = interval_error(only.mean, only.lo, only.hi, true, visible)["coverage"]
+    out.update(coverage_coefficients=coef,
+               coverage_predictive=out["coverage"] if part.predictive else None,
+               predictive=bool(part.predictive))
+    return out
+
+
+def _rows_of(part: PCAPart, vertices: np.ndarray) -> PCAPart:
+    """Restrict a part to the rows of some vertices (scoring needs no other; not orthonormal)."""
+    rows = (3 * np.flatnonzero(vertices)[:, None] + np.arange(3)).ravel()
+    residual = None if part.residual_variance is None else part.residual_variance[rows]
+    return PCAPart(part.mean[rows], part.basis[rows], part.variance, part.noise_variance,
+                   residual)
+
+
 def albedo_score(model: MorphableModel, samples: np.ndarray, layout: ParamLayout,
                  true_diffuse: np.ndarray, visible: np.ndarray, *,
                  level: float = 0.9) -> AlbedoScore:
@@ -97,9 +148,16 @@ def albedo_score(model: MorphableModel, samples: np.ndarray, layout: ParamLayout
         Vertices scored (those seen in the true view).
     level : float
         Central interval probability (0.9: 5 % / 95 %).
+
+    Returns
+    -------
+    AlbedoScore
+        ``coverage`` is predictive when the model has a residual variance.
     """
-    post = albedo_posterior(model.diffuse, np.asarray(samples)[:, albedo_columns(layout)],
-                            level=level)
-    err = interval_error(post.mean, post.lo, post.hi, true_diffuse, visible)
+    sel = np.asarray(visible, bool)
+    post = albedo_posterior(_rows_of(model.diffuse, sel),
+                            np.asarray(samples)[:, albedo_columns(layout)], level=level)
+    err = posterior_interval_error(post, np.asarray(true_diffuse)[sel], np.ones(sel.sum(), bool))
     n_samples = int(np.asarray(samples).shape[0])
-    return AlbedoScore(err["rmse"], err["coverage"], float(level), n_samples)
+    return AlbedoScore(err["rmse"], err["coverage"], float(level), n_samples,
+                       err["coverage_coefficients"], err["predictive"])

@@ -2,7 +2,12 @@
 
 The posterior is summarised from the pooled stage-2 samples of the shared
 albedo coefficients after the burn-in (``config.burn_fraction``); a fit without
-an image stage summarises its best sample (zero width).
+an image stage summarises its best sample (zero width). When the model's albedo
+parts carry a residual variance, the std and intervals are posterior
+predictive (coefficients + what the model cannot represent; see
+:mod:`mcmcfit.outputs.posterior`) and the coefficient-only ones are kept beside
+them; otherwise they are coefficient-only and say so
+(:func:`albedo_interval_fields`, for ``summary.json``).
 
 This module imports :mod:`albedo_model.model`, :mod:`mcmcfit.fitting.result` and
 :mod:`mcmcfit.outputs.posterior`.
@@ -19,8 +24,8 @@ from albedo_model.model import MorphableModel
 from mcmcfit.fitting.result import FitResult
 from mcmcfit.outputs.posterior import AlbedoPosterior, albedo_posterior
 
-__all__ = ["PosteriorAlbedo", "albedo_coefficient_samples", "posterior_albedo",
-           "write_posterior_npz"]
+__all__ = ["PosteriorAlbedo", "albedo_coefficient_samples", "albedo_interval_fields",
+           "posterior_albedo", "write_posterior_npz"]
 
 
 class PosteriorAlbedo(NamedTuple):
@@ -53,7 +58,8 @@ def albedo_coefficient_samples(result: FitResult) -> np.ndarray:
 
 
 def posterior_albedo(result: FitResult, model: MorphableModel, visible: np.ndarray, *,
-                     level: float = 0.9) -> PosteriorAlbedo:
+                     level: float = 0.9, rng: np.random.Generator | None = None
+                     ) -> PosteriorAlbedo:
     """Summaries of the diffuse and specular albedo instances over the posterior samples.
 
     Parameters
@@ -64,17 +70,70 @@ def posterior_albedo(result: FitResult, model: MorphableModel, visible: np.ndarr
         Vertices visible in the fitted view (:func:`mcmcfit.outputs.posterior.visible_vertices`).
     level : float
         Probability of the central credible interval.
+    rng : numpy.random.Generator, optional
+        Residual draws of the predictive quantiles (default: seeded by the fit's seed).
+
+    Returns
+    -------
+    PosteriorAlbedo
+        Predictive std and intervals for the parts with a residual variance
+        (``part.predictive``), coefficient-only ones otherwise.
     """
     coef = albedo_coefficient_samples(result)
-    diffuse = albedo_posterior(model.diffuse, coef[:, :model.diffuse.rank], level=level)
+    rng = np.random.default_rng(int(result.seed)) if rng is None else rng
+    diffuse = albedo_posterior(model.diffuse, coef[:, :model.diffuse.rank], level=level, rng=rng)
     specular = None
     if model.specular is not None:
         if model.shared_albedo:
             spec_coef = coef[:, :model.specular.rank]
         else:  # independent specular coefficients are not sampled: the mean instance
             spec_coef = np.zeros((1, 0))
-        specular = albedo_posterior(model.specular, spec_coef, level=level)
+        specular = albedo_posterior(model.specular, spec_coef, level=level, rng=rng)
     return PosteriorAlbedo(diffuse, specular, np.asarray(visible, bool), int(coef.shape[0]))
+
+
+def _rms(a: np.ndarray, sel: np.ndarray | None = None) -> list[float]:
+    """Root mean square per channel of (n, 3) values (over ``sel`` when given)."""
+    x = np.asarray(a, np.float64)
+    x = x if sel is None else x[sel]
+    return [float(v) for v in np.sqrt(np.mean(x**2, axis=0))] if len(x) else [None] * 3
+
+
+def albedo_interval_fields(post: PosteriorAlbedo) -> dict:
+    """Describe the intervals of ``post`` for ``summary.json``'s ``albedo`` record.
+
+    Returns
+    -------
+    dict
+        ``predictive`` (bool: the diffuse std and intervals include the model's
+        residual variance), ``interval_kind`` (a sentence), ``residual_variance``:
+        per part (``diffuse``, ``specular``) ``{"present": bool, "rms_rgb": [r, g, b]
+        or None}`` (root mean residual variance over all vertices, linear sRGB),
+        and the visible-vertex mean of the coefficient-only and predictive
+        diffuse std (``diffuse_std_coefficients_visible_mean``,
+        ``diffuse_std_predictive_visible_mean``, None when not predictive).
+    """
+    vis = np.asarray(post.visible, bool)
+    residual = {}
+    for name in ("diffuse", "specular"):
+        part = getattr(post, name)
+        if part is None:
+            continue
+        present = part.residual_std is not None
+        residual[name] = {"present": present,
+                          "rms_rgb": _rms(part.residual_std) if present else None}
+    d = post.diffuse
+    kind = ("posterior predictive: coefficient samples + N(0, the model's leave-one-out "
+            "residual variance) per vertex and channel" if d.predictive else
+            "coefficients only: the model has no residual variance (what it cannot represent "
+            "is not in the intervals)")
+    mean_vis = (lambda a: float(np.asarray(a, np.float64)[vis].mean()) if vis.any()
+                else None)
+    return {
+        "predictive": bool(d.predictive), "interval_kind": kind, "residual_variance": residual,
+        "diffuse_std_coefficients_visible_mean": mean_vis(d.coefficient_only().std),
+        "diffuse_std_predictive_visible_mean": mean_vis(d.std) if d.predictive else None,
+    }
 
 
 def write_posterior_npz(path: str | os.PathLike, post: PosteriorAlbedo) -> None:
@@ -82,6 +141,9 @@ def write_posterior_npz(path: str | os.PathLike, post: PosteriorAlbedo) -> None:
 
     Specular arrays are absent for models without a specular part. ``level``
     holds the interval probability (0.9: ``lo``/``hi`` are the 5 % / 95 % quantiles).
+    ``std``, ``lo`` and ``hi`` are predictive when ``{part}_predictive`` is True;
+    ``{part}_coef_{std,lo,hi}`` are always the coefficient-only ones and
+    ``{part}_residual_std`` (predictive parts only) is the model's residual sd.
     """
     arrays: dict[str, np.ndarray] = {"visible": post.visible,
                                      "level": np.float64(post.diffuse.level)}
@@ -90,5 +152,11 @@ def write_posterior_npz(path: str | os.PathLike, post: PosteriorAlbedo) -> None:
             continue
         for field in ("mean", "std", "lo", "hi"):
             arrays[f"{name}_{field}"] = np.asarray(getattr(part, field), np.float32)
+        only = part.coefficient_only()
+        for field in ("std", "lo", "hi"):
+            arrays[f"{name}_coef_{field}"] = np.asarray(getattr(only, field), np.float32)
+        arrays[f"{name}_predictive"] = np.bool_(part.predictive)
+        if part.predictive:
+            arrays[f"{name}_residual_std"] = np.asarray(part.residual_std, np.float32)
     with open(path, "wb") as fh:
         np.savez_compressed(fh, **arrays)

@@ -1,9 +1,12 @@
 """Matplotlib figures of a fit: uncertainty maps with a colour bar, traces, landmarks.
 
 Figures are drawn with the Agg backend on figure objects (no pyplot state) and
-written as PNG.
+written as PNG. An uncertainty map (:func:`save_uncertainty_map`) shows the
+coefficient-only posterior std and, when the model has a residual variance,
+the posterior predictive std beside it on the same colour scale.
 
-This module imports only :mod:`mcmcfit.fitting.result` (and matplotlib).
+This module imports :mod:`mcmcfit.fitting.result` and :mod:`mcmcfit.outputs.vertex_maps`
+(and matplotlib).
 """
 
 from __future__ import annotations
@@ -13,8 +16,12 @@ import os
 import numpy as np
 
 from mcmcfit.fitting.result import FitResult
+from mcmcfit.outputs.vertex_maps import std_maps, vertex_image
 
-__all__ = ["save_scalar_map", "save_traces", "save_landmark_figure"]
+__all__ = ["save_scalar_map", "save_traces", "save_landmark_figure", "save_uncertainty_map",
+           "uncertainty_scale"]
+
+STD_LABEL = "posterior std of {part} albedo\n(linear sRGB, mean over R, G, B)"
 
 
 def _figure(width: float, height: float):
@@ -55,6 +62,36 @@ def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray,
     cbar.set_label(label, fontsize=8)
     cbar.ax.tick_params(labelsize=7)
     fig.savefig(path)
+
+
+def uncertainty_scale(part) -> float:
+    """Top of an uncertainty map's colour scale: the 99.5 % quantile of the largest std map."""
+    std = std_maps(part)[-1][1]
+    return float(np.quantile(std, 0.995)) if std.size else 1.0
+
+
+def save_uncertainty_map(path: str | os.PathLike, state, part, *, name: str, view: str,
+                         vmax: float | None = None) -> None:
+    """Std maps of one albedo part in one view: coefficient-only (and predictive) panels.
+
+    Parameters
+    ----------
+    path : path-like
+        PNG to write.
+    state : albedo_model.render.renderer.RenderState
+        The view (its ray hits interpolate the per-vertex values).
+    part : mcmcfit.outputs.posterior.AlbedoPosterior
+    name, view : str
+        ``"diffuse"`` / ``"specular"`` and ``"fitted"`` / ``"frontal"``, for the titles.
+    vmax : float, optional
+        Colour-scale top shared by the views (default :func:`uncertainty_scale`).
+    """
+    panels = []
+    for label, std in std_maps(part):
+        img, mask = vertex_image(state, std)
+        panels.append((f"{name} std, {label}\n{view} view", img, mask))
+    save_scalar_map(path, panels, vmax=uncertainty_scale(part) if vmax is None else vmax,
+                    label=STD_LABEL.format(part=name))
 
 
 def save_traces(path: str | os.PathLike, result: FitResult,

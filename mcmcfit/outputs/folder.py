@@ -4,17 +4,23 @@ Files (see the README's "Using it" section):
 
 ==============================  ==========================================================
 ``posterior.npz``               ``diffuse_``/``specular_`` ``mean``, ``std``, ``lo``, ``hi``
-                                (n, 3) linear sRGB (5 % / 95 %), ``visible`` (n,) bool
+                                (n, 3) linear sRGB (5 % / 95 %; posterior predictive when
+                                ``<part>_predictive``), ``<part>_coef_{std,lo,hi}``
+                                (coefficient-only), ``<part>_residual_std``, ``visible``
 ``best.rps``, ``mean.rps``      best sample (highest image likelihood) and posterior mean (V4)
 ``target.png``, ``fit.png``     the input, and the best fit rendered over it
 ``fit_landmarks.png``           target and fitted landmarks, fit, difference (figure)
 ``albedo_<part>_<view>.png``    posterior-mean albedo, display-encoded, RGBA (view: ``fitted``
                                 or ``frontal``; part: ``diffuse`` or ``specular``)
-``uncertainty_<part>_<view>``   posterior std (mean over R, G, B) with a colour bar (figure)
-``.png``
+``uncertainty_<part>_<view>``   posterior std (mean over R, G, B) with a colour bar (figure):
+``.png``                        coefficient-only, and predictive beside it when the model has
+                                a residual variance
 ``traces.png``                  log densities and sampled parameters per step (figure)
 ``mesh.ply``                    mean shape with posterior-mean diffuse albedo (gamma 2.2)
 ``chain.h5``                    every chain (:meth:`FitResult.save_chain`)
+``posterior.nc``                the image stage as an ArviZ ``InferenceData`` (posterior,
+                                sample_stats, warm-up groups, observed_data; netCDF-4):
+                                :mod:`mcmcfit.outputs.inference_data`
 ``config.json``                 the :class:`~mcmcfit.fitting.config.FitConfig`
 ``summary.json``                see :func:`mcmcfit.outputs.summary.build_summary`
 ``report.html``                 everything above on one page
@@ -41,9 +47,19 @@ from albedo_model.io.rps import write_rps
 from albedo_model.render.renderer import Renderer
 from mcmcfit.fitting.result import FitResult
 from mcmcfit.targets.landmarks import target_landmarks
-from mcmcfit.outputs.albedo_summary import posterior_albedo, write_posterior_npz
-from mcmcfit.outputs.figures import save_landmark_figure, save_scalar_map, save_traces
-from mcmcfit.outputs.summary import build_summary, landmark_errors
+from mcmcfit.outputs.albedo_summary import (
+    albedo_interval_fields,
+    posterior_albedo,
+    write_posterior_npz,
+)
+from mcmcfit.outputs.figures import (
+    save_landmark_figure,
+    save_traces,
+    save_uncertainty_map,
+    uncertainty_scale,
+)
+from mcmcfit.outputs.inference_data import inference_data, write_posterior_nc
+from mcmcfit.outputs.summary import build_summary, landmark_errors, software_versions
 from mcmcfit.outputs.truth import Truth, albedo_error
 from mcmcfit.outputs.vertex_maps import encode_display, frontal_params, vertex_image
 from mcmcfit.outputs.posterior import visible_vertices
@@ -55,10 +71,14 @@ OUTPUT_FILES = (
     "posterior.npz", "best.rps", "mean.rps", "target.png", "fit.png", "fit_landmarks.png",
     "albedo_diffuse_fitted.png", "albedo_diffuse_frontal.png",
     "uncertainty_diffuse_fitted.png", "uncertainty_diffuse_frontal.png",
-    "traces.png", "mesh.ply", "chain.h5", "config.json", "summary.json", "report.html",
+    "traces.png", "mesh.ply", "chain.h5", "posterior.nc", "config.json", "summary.json",
+    "report.html",
 )
 
-_STD_LABEL = "posterior std of {part} albedo\n(linear sRGB, mean over R, G, B)"
+#: FitConfig fields of the likelihoods' noise model (``posterior.nc`` attrs, with the fitted
+#: ``FitResult.noise`` when the fit has one).
+_NOISE_FIELDS = ("noise", "sigma_px", "temperature", "likelihood", "trim_fraction", "background",
+                 "sigma_lm", "lm_hidden_probability")
 
 
 def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, image: np.ndarray, *,
@@ -126,15 +146,12 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     parts = [("diffuse", post.diffuse)] + ([("specular", post.specular)]
                                            if post.specular is not None else [])
     for name, part in parts:
-        std = part.std.mean(axis=1)
-        vmax = float(np.quantile(std, 0.995)) if std.size else 1.0
+        vmax = uncertainty_scale(part)
         for view, st in (("fitted", state), ("frontal", front)):
             rgb, mask = vertex_image(st, part.mean)
             write_png(out / f"albedo_{name}_{view}.png", encode_display(rgb), alpha=mask)
-            s_img, s_mask = vertex_image(st, std)
-            save_scalar_map(out / f"uncertainty_{name}_{view}.png",
-                            [(f"{name} albedo std, {view} view", s_img, s_mask)],
-                            vmax=vmax, label=_STD_LABEL.format(part=name))
+            save_uncertainty_map(out / f"uncertainty_{name}_{view}.png", st, part, name=name,
+                                 view=view, vmax=vmax)
     save_traces(out / "traces.png", result)
 
     m = mean.momo
@@ -143,6 +160,7 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     write_mesh(out / "mesh.ply", verts, model.triangles, post.diffuse.mean.astype(np.float64),
                gamma=2.2)
     result.save_chain(out / "chain.h5")
+    write_posterior_nc(out / "posterior.nc", _inference_data(result, loaded, target, clicked))
     (out / "config.json").write_text(cfg.to_json() + "\n", encoding="utf-8")
 
     truth_error = None
@@ -155,7 +173,7 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
               "n_vertices": int(visible.size), "n_visible": int(visible.sum()),
               "diffuse_std_visible_mean": float(post.diffuse.std[visible].mean())
               if visible.any() else None,
-              "specular": post.specular is not None}
+              "specular": post.specular is not None, **albedo_interval_fields(post)}
     files = [p.name for p in out.iterdir()] + ["summary.json", "report.html"]
     summary = build_summary(result, model_sha256=loaded.sha256, model_uri=loaded.uri,
                             inputs={**(inputs or {}), "face_box": None if face_box is None
@@ -169,6 +187,21 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
 
     write_report(out / "report.html", summary)
     return summary
+
+
+def _inference_data(result: FitResult, loaded, image: np.ndarray, clicked: dict):
+    """Build the fit's ``InferenceData`` (without warm-up records the burn-in is the warm-up)."""
+    cfg = result.config
+    has_warmup = any(getattr(c, "warmup", None) is not None for c in result.chains)
+    attrs = {"seed": int(result.seed), "model_sha256": str(loaded.sha256),
+             "model_uri": str(loaded.uri), "mcmcfit_version": software_versions()["mcmcfit"],
+             "software": software_versions(),
+             "noise_model": {**{k: getattr(cfg, k) for k in _NOISE_FIELDS if hasattr(cfg, k)},
+                             **dict(getattr(result, "noise", None) or {})},
+             "config": cfg.to_dict()}
+    return inference_data(result.chains, result.layout, result.template, loaded.model,
+                          observed={"image": image, "landmarks": clicked}, attrs=attrs,
+                          burn_fraction=0.0 if has_warmup else cfg.burn_fraction)
 
 
 def _pose_error_deg(fit, true) -> dict:

@@ -1,4 +1,4 @@
-"""Posterior summaries of per-vertex albedo from coefficient samples.
+"""Posterior and posterior predictive summaries of per-vertex albedo from coefficient samples.
 
 An albedo PCA part is linear in its coefficients, so the posterior mean and
 standard deviation of every vertex colour follow exactly from the mean and
@@ -6,11 +6,26 @@ covariance of the coefficient samples (no per-sample instances needed); the
 credible interval bounds need the samples and are computed in vertex blocks to
 bound memory.
 
+Coefficient-only and predictive. The coefficients' posterior describes only the
+part of a face's albedo inside the model's span; a real face also differs from
+the model outside it. When the part carries a residual variance ``r`` (per
+vertex and channel, estimated out of sample when the model was built; see
+:attr:`albedo_model.pca.PCAPart.residual_variance`), the summaries are those of
+the posterior *predictive* ``x = mu + W c + e`` with ``e ~ N(0, diag(r))``
+independent of ``c``: the mean is unchanged, the variance is ``Var[W c] + r``
+(exact), and the interval bounds are quantiles of the mixture of
+``N(mu + W c_s, r)`` over the samples ``c_s``, by Monte Carlo: every sample is
+repeated ``ceil(min_draws / S)`` times with its own normal draw of ``e``. The
+coefficient-only summaries are always kept beside them. Without a residual
+variance (AlbedoMM and BFM files) the two are the same and ``predictive`` is
+False.
+
 This module imports only :mod:`albedo_model.errors` and :mod:`albedo_model.pca`.
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -20,15 +35,23 @@ from albedo_model.pca import PCAPart
 
 __all__ = ["AlbedoPosterior", "albedo_posterior", "visible_vertices"]
 
+#: Elements of one block of Monte Carlo draws (draws x rows), about 32 MB of float64.
+_BLOCK_ELEMENTS = 1 << 22
+
 
 class AlbedoPosterior(NamedTuple):
     """Per-vertex posterior of one albedo part, each (n, 3) float32 linear sRGB.
 
     Attributes
     ----------
-    mean, std : posterior mean and standard deviation
-    lo, hi : lower and upper bounds of the central credible interval
+    mean : posterior mean (the same for the predictive)
+    std : standard deviation, predictive when ``residual_std`` is given
+    lo, hi : bounds of the central interval, predictive when ``residual_std`` is given
     level : the interval's probability (e.g. 0.9 for 5 % / 95 %)
+    coef_std, coef_lo, coef_hi : the coefficient-only std and interval (None: equal
+        to ``std``, ``lo``, ``hi``)
+    residual_std : square root of the model's residual variance, or None when the
+        model has none (the summaries are then coefficient-only)
     """
 
     mean: np.ndarray
@@ -36,11 +59,49 @@ class AlbedoPosterior(NamedTuple):
     lo: np.ndarray
     hi: np.ndarray
     level: float
+    coef_std: np.ndarray | None = None
+    coef_lo: np.ndarray | None = None
+    coef_hi: np.ndarray | None = None
+    residual_std: np.ndarray | None = None
+
+    @property
+    def predictive(self) -> bool:
+        """Whether ``std``, ``lo`` and ``hi`` include the model's residual variance."""
+        return self.residual_std is not None
+
+    def coefficient_only(self) -> AlbedoPosterior:
+        """Return the summaries of the coefficients' posterior alone (``self`` if not predictive)."""
+        if self.coef_std is None:
+            return self._replace(residual_std=None)
+        return AlbedoPosterior(self.mean, self.coef_std, self.coef_lo, self.coef_hi, self.level,
+                               residual_std=None)
+
+
+def _quantiles(x: np.ndarray, q: list[float]) -> list[np.ndarray]:
+    """``np.quantile(x, q, axis=1)`` (linear interpolation) by one partial sort of each row."""
+    n = x.shape[1]
+    pos = [(n - 1) * p for p in q]
+    below = [int(np.floor(h)) for h in pos]
+    kth = sorted({k for b in below for k in (b, min(b + 1, n - 1))})
+    part = np.partition(x, kth, axis=1)
+    return [part[:, b] + (h - b) * (part[:, min(b + 1, n - 1)] - part[:, b])
+            for h, b in zip(pos, below)]
+
+
+def _check(part: PCAPart, c: np.ndarray, level: float) -> None:
+    if c.ndim != 2 or c.shape[0] < 1:
+        raise InputError(f"coefficient samples must be (S, j) with S >= 1, got shape {c.shape}")
+    if c.shape[1] > part.rank:
+        raise InputError(f"{c.shape[1]} coefficients for a rank-{part.rank} part")
+    if not 0 < level < 1:
+        raise InputError(f"level must be in (0, 1), got {level}")
 
 
 def albedo_posterior(part: PCAPart, coefficients: np.ndarray, *, level: float = 0.9,
-                     block_rows: int = 8192) -> AlbedoPosterior:
-    """Posterior mean, std and central interval of ``part``'s instance.
+                     block_rows: int = 8192, predictive: bool = True,
+                     rng: np.random.Generator | None = None,
+                     min_draws: int = 1000) -> AlbedoPosterior:
+    """Posterior (predictive) mean, std and central interval of ``part``'s instance.
 
     Parameters
     ----------
@@ -53,6 +114,14 @@ def albedo_posterior(part: PCAPart, coefficients: np.ndarray, *, level: float = 
         Probability of the central interval (0.9 gives the 5 % and 95 % quantiles).
     block_rows : int
         Rows of the data vector per block when computing quantiles.
+    predictive : bool
+        Add the part's residual variance when it has one (default); False gives
+        the coefficient-only summaries whatever the part holds.
+    rng : numpy.random.Generator, optional
+        Draws of the residual for the predictive quantiles (default: seed 0, so
+        that a fit's outputs are reproducible).
+    min_draws : int
+        Least number of Monte Carlo draws per row for the predictive quantiles.
 
     Returns
     -------
@@ -61,32 +130,48 @@ def albedo_posterior(part: PCAPart, coefficients: np.ndarray, *, level: float = 
     Notes
     -----
     With ``x = mu + W c`` (``W = U diag(sqrt(lambda))``): ``E[x] = mu + W E[c]`` and
-    ``Var[x_i] = W_i Cov[c] W_i^T``, evaluated as ``sum((W C) * W, axis=1)``.
+    ``Var[x_i] = W_i Cov[c] W_i^T``, evaluated as ``sum((W C) * W, axis=1)``; the
+    predictive adds ``r_i``. With 1,000 draws the Monte Carlo error of a 5 %
+    bound is about 7 % of the predictive standard deviation (unbiased), smaller
+    than that of the chain's own samples, which are autocorrelated.
     """
     c = np.asarray(coefficients, np.float64)
-    if c.ndim != 2 or c.shape[0] < 1:
-        raise InputError(f"coefficient samples must be (S, j) with S >= 1, got shape {c.shape}")
-    if c.shape[1] > part.rank:
-        raise InputError(f"{c.shape[1]} coefficients for a rank-{part.rank} part")
-    if not 0 < level < 1:
-        raise InputError(f"level must be in (0, 1), got {level}")
+    _check(part, c, level)
     j = c.shape[1]
     w = part.scaled_basis[:, :j].astype(np.float64)
     mean = part.mean.astype(np.float64) + w @ c.mean(0)
     cov = np.cov(c, rowvar=False, ddof=0).reshape(j, j) if c.shape[0] > 1 else np.zeros((j, j))
-    var = np.einsum("ij,ij->i", w @ cov, w)
-    std = np.sqrt(np.maximum(var, 0.0))
+    var = np.maximum(np.einsum("ij,ij->i", w @ cov, w), 0.0)
+    residual = part.residual_variance if predictive else None
     q = [(1 - level) / 2, 1 - (1 - level) / 2]
-    lo = np.empty(part.dim)
-    hi = np.empty(part.dim)
+    lo, hi = np.empty(part.dim), np.empty(part.dim)
     base = part.mean.astype(np.float64)
-    for start in range(0, part.dim, block_rows):
-        sl = slice(start, start + block_rows)
-        x = base[sl] + c @ w[sl].T  # (S, rows)
-        lo[sl], hi[sl] = np.quantile(x, q, axis=0)
-    shape = (-1, 3)
-    f32 = lambda a: a.reshape(shape).astype(np.float32)  # noqa: E731
-    return AlbedoPosterior(f32(mean), f32(std), f32(lo), f32(hi), float(level))
+    ct = np.ascontiguousarray(c.T)
+    if residual is None:
+        for start in range(0, part.dim, block_rows):
+            sl = slice(start, start + block_rows)
+            lo[sl], hi[sl] = _quantiles(base[sl, None] + w[sl] @ ct, q)  # (rows, S)
+        f32 = lambda a: a.reshape(-1, 3).astype(np.float32)
+        return AlbedoPosterior(f32(mean), f32(np.sqrt(var)), f32(lo), f32(hi), float(level))
+    r = residual.astype(np.float64)
+    rng = np.random.default_rng(0) if rng is None else rng
+    reps = max(1, math.ceil(min_draws / c.shape[0]))
+    rows = max(1, min(block_rows, _BLOCK_ELEMENTS // (reps * c.shape[0])))
+    c_lo, c_hi = np.empty(part.dim), np.empty(part.dim)
+    for start in range(0, part.dim, rows):
+        sl = slice(start, start + rows)
+        x = base[sl, None] + w[sl] @ ct                      # (rows, S)
+        c_lo[sl], c_hi[sl] = _quantiles(x, q)
+        # float32 draws: the bounds are stored as float32 and the Monte Carlo error is
+        # far above float32 rounding
+        draws = rng.standard_normal((x.shape[0], x.shape[1], reps), dtype=np.float32)
+        draws *= np.sqrt(r[sl, None, None]).astype(np.float32)
+        draws += x[:, :, None]
+        lo[sl], hi[sl] = _quantiles(draws.reshape(x.shape[0], -1), q)
+    f32 = lambda a: a.reshape(-1, 3).astype(np.float32)
+    return AlbedoPosterior(f32(mean), f32(np.sqrt(var + r)), f32(lo), f32(hi), float(level),
+                           coef_std=f32(np.sqrt(var)), coef_lo=f32(c_lo), coef_hi=f32(c_hi),
+                           residual_std=f32(np.sqrt(r)))
 
 
 def visible_vertices(renderer, state) -> np.ndarray:

@@ -1,10 +1,13 @@
 """``report.html``: one self-describing page per fit, over the PNGs beside it.
 
 The page shows the target and the fit, the landmarks, the posterior albedo and
-uncertainty maps in the fitted and the frontal view, the traces, the acceptance
-table per proposal, the convergence diagnostics, the timings and provenance,
-and (for synthetic cases) the error against the truth. Pictures are referenced
-by relative path, so the folder can be moved as a whole.
+uncertainty maps in the fitted and the frontal view (coefficient-only std and,
+for models with a residual variance, the posterior predictive std beside it),
+the traces, the acceptance table per proposal, the convergence diagnostics,
+the timings and provenance, and (for synthetic cases) the error against the
+truth, with the coverage of both the predictive and the coefficient-only
+intervals. Pictures are referenced by relative path, so the folder can be
+moved as a whole.
 
 This module imports only :mod:`mcmcfit.outputs.html_style`.
 """
@@ -74,6 +77,58 @@ def _acceptance(stats: dict) -> str:
                   rows)
 
 
+def _truth_table(truth: dict) -> str:
+    """Errors against the truth, with the coverage of both kinds of interval when known."""
+    level = _fmt(100 * truth.get("interval", 0.9), 3)
+    both = any("coverage_coefficients" in truth.get(p, {}) for p in ("diffuse", "specular"))
+    rows, predictive = [], False
+    for part in ("diffuse", "specular"):
+        e = truth.get(part)
+        if not e:
+            continue
+        row = [part, e.get("rmse"), e.get("mean_abs")]
+        if both:
+            predictive |= bool(e.get("predictive"))
+            row += [e.get("coverage_predictive"), e.get("coverage_coefficients")]
+        else:
+            row.append(e.get("coverage"))
+        rows.append(row)
+    header = ["albedo", "RMSE", "mean |error|"]
+    if both:
+        header += [f"coverage, {level} % predictive", f"coverage, {level} % coefficients only"]
+        note = ("predictive intervals add the model's residual variance (what it cannot "
+                "represent) to the coefficients' posterior and are the headline; "
+                if predictive else "the model has no residual variance, so there are no "
+                "predictive intervals (–); ")
+    else:
+        header.append("coverage")
+        note = ""
+    text = (f"<p>Posterior-mean albedo against the true albedo on the "
+            f"{_fmt(truth.get('n_visible'))} vertices visible in the true view (linear sRGB); "
+            f"coverage: fraction of true values inside the {level} % intervals; {note}a face "
+            f"drawn from the model itself lies in its span, where the coefficient-only "
+            f"intervals are the ones to judge.</p>")
+    return text + _table(header, rows)
+
+
+def _uncertainty_note(albedo: dict) -> str:
+    """One paragraph saying which standard deviations the maps show."""
+    if albedo.get("predictive"):
+        res = (albedo.get("residual_variance") or {}).get("diffuse") or {}
+        rms = ", ".join(_fmt(v, 3) for v in res.get("rms_rgb") or [])
+        return ("<p>Left: the std of the coefficients' posterior alone. Right: the posterior "
+                "predictive std, which adds the model's residual variance (the out-of-span "
+                "variation of faces, estimated by leave-one-out over the training subjects; "
+                f"diffuse RMS per channel R, G, B: {rms}). The intervals in posterior.npz "
+                "and the coverage above are the predictive ones (the coefficient-only ones "
+                "are stored beside them).</p>")
+    if "predictive" in albedo:
+        return ("<p>Coefficient-only std: the model has no residual variance (for example an "
+                "AlbedoMM or BFM file), so what it cannot represent is not in the maps or the "
+                "intervals.</p>")
+    return ""
+
+
 def render_report(summary: dict, files: set[str] | None = None) -> str:
     """Build the report page for ``summary`` (a ``summary.json`` dict) as HTML text.
 
@@ -122,14 +177,7 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
     parts += ["<h2>Overview</h2>", _table(["", ""], overview, left=2)]
     truth = summary.get("truth")
     if truth:
-        rows = [[part, truth[part]["rmse"], truth[part]["mean_abs"], truth[part]["coverage"]]
-                for part in ("diffuse", "specular") if part in truth]
-        parts += ["<h2>Error against the truth (synthetic case)</h2>",
-                  f"<p>Posterior-mean albedo against the true albedo on the "
-                  f"{_fmt(truth.get('n_visible'))} vertices visible in the true view "
-                  f"(linear sRGB); coverage: fraction of true values inside the "
-                  f"{_fmt(100 * truth.get('interval', 0.9), 3)} % intervals.</p>",
-                  _table(["albedo", "RMSE", "mean |error|", "coverage"], rows)]
+        parts += ["<h2>Error against the truth (synthetic case)</h2>", _truth_table(truth)]
         if "pose_error_deg" in truth:
             pe = truth["pose_error_deg"]
             parts.append(_table(["pose error (deg)", "yaw", "pitch", "roll"],
@@ -155,6 +203,8 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
     for kind, title in (("albedo", "Posterior-mean albedo (display-encoded)"),
                         ("uncertainty", "Uncertainty: posterior standard deviation")):
         parts.append(f"<h2>{title}</h2>")
+        if kind == "uncertainty":
+            parts.append(_uncertainty_note(summary.get("albedo") or {}))
         for part in ("diffuse", "specular"):
             for view in ("fitted", "frontal"):
                 name = f"{kind}_{part}_{view}.png"

@@ -16,7 +16,7 @@ from mcmcfit.fitting.result import FitResult
 __all__ = ["SUMMARY_FORMAT", "landmark_errors", "build_summary", "json_safe", "software_versions"]
 
 #: Identifies the layout of ``summary.json``; bumped when fields change meaning.
-SUMMARY_FORMAT = "mcmcfit-fit-summary/1"
+SUMMARY_FORMAT = "mcmcfit-fit-summary/2"
 
 
 def _mcmcfit_version() -> str:
@@ -30,7 +30,7 @@ def _mcmcfit_version() -> str:
 def software_versions() -> dict[str, str]:
     """Return the versions of mcmcfit and the libraries that shape its numbers."""
     out = {"mcmcfit": _mcmcfit_version(), "python": platform.python_version()}
-    for pkg in ("numpy", "jax", "jaxlib", "embreex", "emcee"):
+    for pkg in ("numpy", "jax", "jaxlib", "embreex", "emcee", "arviz"):
         try:
             out[pkg] = version(pkg)
         except PackageNotFoundError:
@@ -79,13 +79,21 @@ def build_summary(result: FitResult, *, model_sha256: str, model_uri: str, input
     (seconds: ``setup_s``, ``stage1_s``, ``stage2_s`` summed over chains,
     ``total_s`` wall time of the fit, ``outputs_s``, steps per second),
     ``acceptance`` / ``acceptance_stage1`` (per proposal: counts by filter and
-    ``rate``), ``acceptance_rate`` (per chain), ``ess`` and ``rhat`` (per
-    series of the last stage run: ``log_posterior``, ``log_lik_img``, sampled
-    columns), ``diagnostics`` (both stages, with per-chain autocorrelation
-    times), ``landmark_rmse_px`` (best sample) and ``landmark_errors_px``,
+    ``rate``), ``acceptance_rate`` (per chain), ``ess`` (bulk-ESS), ``ess_tail``
+    and ``rhat`` (rank-normalised split R-hat) per monitored quantity of the last
+    stage run (log densities, every sampled column that moves, the regions' mean
+    albedo ``albedo_mean.<region>.<r|g|b>`` when computed; ArviZ's estimators,
+    :mod:`mcmcfit.sampling.diagnostics`), ``converged`` and ``convergence`` (the
+    image stage's verdict), ``noise_model`` and ``stopping`` (of the fit, when it
+    records them), ``diagnostics`` (both stages: ``ess_bulk``, ``ess_tail``,
+    ``rhat`` per quantity), ``landmark_rmse_px`` (best sample) and ``landmark_errors_px``,
     ``landmarks`` (``used``, ``unknown``), ``best`` / ``best_posterior`` log
-    densities, ``albedo`` (colour space, interval, sample count, visibility),
-    ``truth`` (synthetic cases only), ``config`` and ``files``.
+    densities, ``albedo`` (colour space, interval, sample count, visibility;
+    ``predictive``, ``interval_kind``, ``residual_variance`` per part with
+    ``present`` and ``rms_rgb``, the coefficient-only and predictive mean std:
+    :func:`mcmcfit.outputs.albedo_summary.albedo_interval_fields`),
+    ``truth`` (synthetic cases only), ``config`` and ``files`` (the result folder's
+    files, among them ``chain.h5`` and ``posterior.nc``, the ArviZ ``InferenceData``).
     """
     __version__ = _mcmcfit_version()
     base = result.summary()
@@ -107,10 +115,13 @@ def build_summary(result: FitResult, *, model_sha256: str, model_uri: str, input
         "acceptance": base["acceptance"],
         "acceptance_stage1": base["acceptance_stage1"],
         "acceptance_rate": base["acceptance_rate"],
-        "ess": {k: v.ess for k, v in diag.items()},
+        "ess": {k: v.ess_bulk for k, v in diag.items()},
+        "ess_tail": {k: v.ess_tail for k, v in diag.items()},
         "rhat": {k: v.rhat for k, v in diag.items()},
         "converged": bool(result.convergence.get("converged", False)),
         "convergence": result.convergence,
+        "noise_model": base.get("noise_model") or {},
+        "stopping": base.get("stopping") or {},
         "diagnostics": base["diagnostics"],
         "landmark_rmse_px": None if landmark_err is None else landmark_err["rmse_px"],
         "landmark_errors_px": None if landmark_err is None else landmark_err["per_landmark_px"],

@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mcmcfit.outputs.accuracy import interval_error
+from mcmcfit.outputs.accuracy import posterior_interval_error
 
 __all__ = ["Truth", "albedo_error"]
 
@@ -46,14 +46,15 @@ def albedo_error(post, truth: Truth) -> dict:
     dict
         ``diffuse`` (and ``specular``): ``rmse`` of the posterior mean over
         vertices and channels (linear sRGB), ``mean_abs``, and ``coverage``: the
-        fraction of (vertex, channel) values inside the central interval;
+        fraction of (vertex, channel) values inside the central interval
+        (predictive when the model has a residual variance), with
+        ``coverage_predictive`` (None without one), ``coverage_coefficients``
+        and ``predictive`` (:func:`~mcmcfit.outputs.accuracy.posterior_interval_error`);
         ``interval`` (its probability), ``n_visible``; ``pose_error_deg`` when
         the truth has parameters (filled by the caller).
     """
     out = {"interval": float(post.diffuse.level), "n_visible": int(np.sum(truth.visible)),
-           "diffuse": interval_error(post.diffuse.mean, post.diffuse.lo, post.diffuse.hi,
-                                  truth.diffuse, truth.visible)}
+           "diffuse": posterior_interval_error(post.diffuse, truth.diffuse, truth.visible)}
     if post.specular is not None and truth.specular is not None:
-        out["specular"] = interval_error(post.specular.mean, post.specular.lo, post.specular.hi,
-                                      truth.specular, truth.visible)
+        out["specular"] = posterior_interval_error(post.specular, truth.specular, truth.visible)
     return out

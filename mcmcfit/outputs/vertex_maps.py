@@ -4,6 +4,9 @@ A render state knows, for every pixel, the hit triangle's corner vertices and
 barycentric weights (:class:`albedo_model.shading.interpolation.PixelHits`). Any
 per-vertex quantity (posterior mean albedo, its standard deviation) is then a
 picture of that view by the same interpolation the renderer applies to albedo.
+:func:`std_maps` chooses the per-vertex standard deviations an uncertainty
+figure shows: the coefficient-only one, and the posterior predictive one when
+the model has a residual variance.
 
 This module imports only :mod:`albedo_model.model` and :mod:`albedo_model.params`.
 """
@@ -15,7 +18,7 @@ import numpy as np
 from albedo_model.model import MorphableModel
 from albedo_model.params import Pose, RenderParameter, View, default_square, fit_to_image_size
 
-__all__ = ["vertex_image", "frontal_params", "encode_display"]
+__all__ = ["vertex_image", "frontal_params", "encode_display", "std_maps"]
 
 
 def vertex_image(state, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -83,3 +86,22 @@ def frontal_params(params: RenderParameter, model: MorphableModel, *,
 def encode_display(linear: np.ndarray, gamma: float = 2.2) -> np.ndarray:
     """Clip linear values to [0, 1] and apply the pure power ``1 / gamma`` (display encoding)."""
     return np.clip(np.asarray(linear, np.float64), 0.0, 1.0) ** (1.0 / gamma)
+
+
+def std_maps(part) -> list[tuple[str, np.ndarray]]:
+    """Per-vertex standard deviations to picture for one albedo part, mean over R, G, B.
+
+    Parameters
+    ----------
+    part : mcmcfit.outputs.posterior.AlbedoPosterior
+
+    Returns
+    -------
+    list of (label, (n,) float64)
+        ``("coefficients only", ...)`` always; then ``("predictive (+ model
+        residual)", ...)`` when ``part.predictive``.
+    """
+    maps = [("coefficients only", np.asarray(part.coefficient_only().std, np.float64).mean(1))]
+    if part.predictive:
+        maps.append(("predictive (+ model residual)", np.asarray(part.std, np.float64).mean(1)))
+    return maps

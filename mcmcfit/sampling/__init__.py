@@ -10,8 +10,13 @@ chain
 param_vector
     Flat vectors of the sampled parameters (the columns of ``chain.h5``).
 diagnostics
-    Autocorrelation time, ESS and split R-hat.
+    Rank-normalised split R-hat, bulk- and tail-ESS (ArviZ's estimators, vectorised).
+convergence
+    The convergence verdict and the monitored quantities.
+derived
+    Derived monitored quantities: the regions' mean diffuse albedo per draw.
 
-The package imports only :mod:`albedo_model` (errors, params, io.atomic, io.rps,
-render.cache_table) and :mod:`proposals.base`. This file imports nothing.
+The package imports only :mod:`albedo_model` (errors, model, params, regions,
+io.atomic, io.rps, render.cache_table) and :mod:`proposals.base`. This file imports
+nothing.
 """

@@ -1,4 +1,4 @@
-"""Recording chains: per-step logs, thinned samples, best samples, and the chain HDF5 file.
+"""Recording chains: per-step logs, thinned samples, best samples.
 
 A :class:`ChainRecorder` is the sampler's callback; it fills a
 :class:`ChainRecord`:
@@ -13,44 +13,33 @@ A :class:`ChainRecorder` is the sampler's callback; it fills a
   likelihood (the reference's ``lminit``) and by log posterior, over every
   step including the initial state (step -1).
 
-:func:`write_chains_h5` writes records with ``emcee``'s vocabulary in mind
-(``get_chain``-style arrays: samples (n, d) per chain and stage).
+The chain file (``chain.h5``) is :mod:`mcmcfit.sampling.chain_file`.
 
-This module imports :mod:`albedo_model` (errors, params, io.rps, io.atomic),
-:mod:`mcmcfit.sampling.kernel` and :mod:`mcmcfit.sampling.param_vector`.
+This module imports :mod:`albedo_model.params`, :mod:`mcmcfit.sampling.kernel` and
+:mod:`mcmcfit.sampling.param_vector`.
 """
 
 from __future__ import annotations
 
-import json
-import os
 import time
-from dataclasses import dataclass, field
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 
-from albedo_model.errors import FormatError
-from albedo_model.io.atomic import atomic_path
-from albedo_model.io.rps import format_rps_text, parse_rps_text
 from albedo_model.params import RenderParameter
-from mcmcfit.sampling.param_vector import ParamLayout
 from mcmcfit.sampling.kernel import REJECTION_STAGES, ChainState, StepInfo
+from mcmcfit.sampling.param_vector import ParamLayout
 
 __all__ = [
-    "CHAIN_FILE_VERSION",
     "BestSample",
     "ChainRecord",
     "ChainRecorder",
     "ChainResult",
     "ProposalStats",
     "stacked_samples",
-    "read_chains_h5",
-    "write_chains_h5",
 ]
-
-CHAIN_FILE_VERSION = "1"
 
 
 class BestSample(NamedTuple):
@@ -261,6 +250,31 @@ class ChainRecorder:
             self._k += 1
         self.steps_done = i + 1
 
+    def proposals_since(self, first: int) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        """Return ``(proposal index, accepted, proposal names)`` of the steps from ``first`` on."""
+        n = self.steps_done
+        return self._prop[first:n].copy(), self._acc[first:n].copy(), tuple(self._names)
+
+    def extend(self, n_more: int) -> None:
+        """Make room for ``n_more`` further steps (a chain run in rounds until it converges)."""
+        n_more = int(n_more)
+        if n_more <= 0:
+            return
+        self.n += n_more
+
+        def grow(a: np.ndarray, n: int) -> np.ndarray:
+            out = np.zeros((n,) + a.shape[1:], a.dtype)
+            out[: a.shape[0]] = a
+            return out
+
+        self._lp, self._lm, self._li = (grow(a, self.n) for a in (self._lp, self._lm, self._li))
+        self._prop, self._acc, self._rej, self._dt = (
+            grow(a, self.n) for a in (self._prop, self._acc, self._rej, self._dt))
+        n_kept = self.n // self.thin
+        self._samples, self._sample_step = grow(self._samples, n_kept), grow(self._sample_step,
+                                                                             n_kept)
+        self._last = time.perf_counter()  # the pause between rounds is no step's time
+
     def record(self, seconds: float = 0.0) -> ChainRecord:
         """Return the record of the steps done so far."""
         n, k = self.steps_done, self._k
@@ -274,10 +288,12 @@ class ChainRecorder:
 
 @dataclass
 class ChainResult:
-    """Both stages of one chain, with its seed (``SeedSequence`` entropy and spawn key).
+    """The stages of one chain, with its seed (``SeedSequence`` entropy and spawn key).
 
-    ``stage1`` is None when the landmark stage was skipped, ``stage2`` when the
-    image stage was.
+    ``stage1`` is the landmark stage, ``warmup`` the image stage's warm-up
+    (proposal scales and the noise model adapted; never part of the
+    posterior), ``stage2`` the image stage's kept draws. Each is None when
+    skipped (``warmup`` also in files written before warm-up was separate).
     """
 
     index: int
@@ -285,104 +301,4 @@ class ChainResult:
     spawn_key: tuple[int, ...]
     stage1: ChainRecord | None
     stage2: ChainRecord | None
-
-
-def _write_record(g, rec: ChainRecord) -> None:
-    g.attrs.update(stage=rec.stage, sampler=rec.sampler, thin=rec.thin, steps=rec.steps,
-                   seconds=rec.seconds, extra=json.dumps(rec.extra, default=float))
-    for name in ("sample_step", "samples", "log_prior", "log_lik_lm", "log_lik_img", "proposal",
-                 "accepted", "rejected_by", "step_seconds"):
-        g.create_dataset(name, data=getattr(rec, name), compression="gzip", compression_opts=4)
-    g.create_dataset("proposal_names", data=np.array(rec.proposal_names, dtype=object),
-                     dtype=_str_dtype())
-    for which in ("best_image", "best_landmarks", "best_posterior"):
-        b: BestSample = getattr(rec, which)
-        ds = g.create_dataset(which, data=rec.layout.to_vector(b.params))
-        ds.attrs.update(step=b.step, log_prior=b.log_prior, log_lik_lm=b.log_lik_lm,
-                        log_lik_img=b.log_lik_img)
-
-
-def _str_dtype():
-    import h5py
-
-    return h5py.string_dtype("utf-8")
-
-
-def write_chains_h5(path: str | os.PathLike, chains: list[ChainResult], layout: ParamLayout,
-                    template: RenderParameter, *, attrs: dict | None = None) -> None:
-    """Write chain records to HDF5 (atomically).
-
-    Layout: root attrs ``version``, ``template_rps`` (the fixed fields, .rps V4
-    JSON) and ``attrs`` (e.g. ``config`` JSON, ``seed``); ``/parameter_names``;
-    ``/chain_<i>/{stage1,stage2}/`` with the :class:`ChainRecord` arrays and
-    ``best_*`` vectors (attrs: step and log densities).
-    """
-    import h5py
-
-    with atomic_path(path, suffix=".h5") as tmp, h5py.File(tmp, "w") as f:
-        f.attrs["version"] = CHAIN_FILE_VERSION
-        f.attrs["template_rps"] = format_rps_text(template)
-        for k, v in (attrs or {}).items():
-            f.attrs[k] = v
-        f.create_dataset("parameter_names", data=np.array(layout.names, dtype=object),
-                         dtype=_str_dtype())
-        for c in chains:
-            g = f.create_group(f"chain_{c.index:03d}")
-            g.attrs.update(seed_entropy=str(c.seed_entropy), spawn_key=list(c.spawn_key))
-            if c.stage1 is not None:
-                _write_record(g.create_group("stage1"), c.stage1)
-            if c.stage2 is not None:
-                _write_record(g.create_group("stage2"), c.stage2)
-
-
-def _read_record(g, layout: ParamLayout, template: RenderParameter) -> ChainRecord:
-    def best(name: str) -> BestSample:
-        ds = g[name]
-        a = ds.attrs
-        return BestSample(layout.from_vector(ds[()], template), int(a["step"]),
-                          float(a["log_prior"]), float(a["log_lik_lm"]), float(a["log_lik_img"]))
-
-    names = tuple(s.decode() if isinstance(s, bytes) else str(s) for s in g["proposal_names"][()])
-    return ChainRecord(
-        str(g.attrs["stage"]), str(g.attrs["sampler"]), int(g.attrs["thin"]),
-        int(g.attrs["steps"]), layout, g["sample_step"][()], g["samples"][()],
-        g["log_prior"][()], g["log_lik_lm"][()], g["log_lik_img"][()], g["proposal"][()], names,
-        g["accepted"][()], g["rejected_by"][()], best("best_image"), best("best_landmarks"),
-        best("best_posterior"), float(g.attrs["seconds"]), json.loads(g.attrs["extra"]),
-        g["step_seconds"][()] if "step_seconds" in g else np.zeros(0, np.float32))
-
-
-def read_chains_h5(path: str | os.PathLike) -> tuple[list[ChainResult], ParamLayout, dict]:
-    """Read a file of :func:`write_chains_h5`: ``(chains, layout, root attrs)``.
-
-    Raises
-    ------
-    FormatError
-        Not a chain file, or an unknown version.
-    """
-    import h5py
-
-    try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        raise FormatError(path, f"not an HDF5 file ({exc})") from None
-    with f:
-        if f.attrs.get("version") != CHAIN_FILE_VERSION or "parameter_names" not in f:
-            raise FormatError(path, "not an mcmcfit chain file (version 1)")
-        template = parse_rps_text(str(f.attrs["template_rps"]), source=path)
-        layout = ParamLayout.for_params(template)
-        names = tuple(s.decode() if isinstance(s, bytes) else str(s)
-                      for s in f["parameter_names"][()])
-        if names != layout.names:
-            raise FormatError(path, "parameter names do not match the stored template")
-        chains = []
-        for key in sorted(k for k in f if k.startswith("chain_")):
-            g = f[key]
-            chains.append(ChainResult(
-                int(key.split("_")[1]), int(g.attrs["seed_entropy"]),
-                tuple(int(x) for x in g.attrs["spawn_key"]),
-                _read_record(g["stage1"], layout, template) if "stage1" in g else None,
-                _read_record(g["stage2"], layout, template) if "stage2" in g else None))
-        attrs = {k: v for k, v in f.attrs.items() if k not in ("version", "template_rps")}
-    return chains, layout, attrs
-
+    warmup: ChainRecord | None = None

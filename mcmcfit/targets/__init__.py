@@ -12,10 +12,15 @@ landmarks
     Target landmarks and their likelihood.
 priors
     Priors over the fit parameters.
+noise_model
+    The image likelihood's scale per image: RMS residual and correlation area.
 face
     :class:`~mcmcfit.targets.face.FaceTarget`: renderer + likelihoods + prior, the
     sampler's target.
+gradient
+    The posterior's gradient in shape, expression, pose and camera (gradient moves).
 
-The package imports only :mod:`albedo_model` (camera, errors, model, params,
-render.raycast, render.renderer, shading.image_formation). This file imports nothing.
+The package imports :mod:`albedo_model` (camera, errors, model, params,
+render.differentiable, render.raycast, render.renderer, shading.image_formation) and
+:mod:`proposals.gradient`. This file imports nothing.
 """

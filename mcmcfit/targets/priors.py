@@ -92,17 +92,21 @@ class LogPrior:
         self.config = config or PriorConfig()
         self._frontal = SHLight.frontal().coefficients
 
-    def _light(self, coeffs: np.ndarray) -> float:
+    def light_gaussian(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Return the SH light prior as ``(mean (k, 3), sd (k, 3))`` (independent Gaussians)."""
         c = self.config
-        L = np.asarray(coeffs, np.float64)
-        k = L.shape[0]
-        mean = np.zeros_like(L)
+        mean = np.zeros((k, 3))
         m = min(k, self._frontal.shape[0])
         mean[:m] = self._frontal[:m]
         band = np.floor(np.sqrt(np.arange(k))).astype(int)
         sig = np.asarray(c.light_band_sigma, np.float64)[np.minimum(band, len(c.light_band_sigma) - 1)]
-        z = (L - mean) / sig[:, None]
-        return float(-L.size * _HALF_LOG_2PI - 3.0 * np.sum(np.log(sig)) - 0.5 * np.sum(z * z))
+        return mean, np.repeat(sig[:, None], 3, axis=1)
+
+    def _light(self, coeffs: np.ndarray) -> float:
+        L = np.asarray(coeffs, np.float64)
+        mean, sd = self.light_gaussian(L.shape[0])
+        z = (L - mean) / sd
+        return float(-L.size * _HALF_LOG_2PI - np.sum(np.log(sd)) - 0.5 * np.sum(z * z))
 
     def terms(self, params: RenderParameter) -> dict[str, float]:
         """Each factor's log density, by name (``shape``, ``yaw``, ``distance``, ...)."""

@@ -22,6 +22,7 @@ from albedo_model.io.atomic import atomic_path
 from albedo_model.model import MorphableModel
 from albedo_model.pca import PCAPart, pca_from_data
 from pipeline.modelling.pca_variants import build_albedo_parts
+from pipeline.modelling.residual_variance import attach_residual_variance, loo_residual_variance
 from pipeline.lightstage.capture_folder import LightstageSpec, TemplateInfo, read_vertex_mask
 from pipeline.lightstage.external_scans import ExternalScan, integrate_external
 from pipeline.texturing.inpainting import replace_eyeball_specular, statistical_inpaint
@@ -55,8 +56,10 @@ def inpainting_masks(observed: np.ndarray, user: np.ndarray, *,
 
 
 def _float32(part: PCAPart) -> PCAPart:
+    residual = part.residual_variance
     return PCAPart(part.mean.astype(np.float32), part.basis.astype(np.float32),
-                   part.variance.astype(np.float32), part.noise_variance)
+                   part.variance.astype(np.float32), part.noise_variance,
+                   None if residual is None else residual.astype(np.float32))
 
 
 def _truth(entry) -> tuple[np.ndarray, np.ndarray] | None:
@@ -189,6 +192,8 @@ def assemble_models(results: dict, template: TemplateInfo, spec: LightstageSpec,
         else ("transferred",)
     for variant in variants:
         parts = build_albedo_parts(final_d, final_s, sym, variant=variant, rank=settings.rank)
+        parts = attach_residual_variance(parts, loo_residual_variance(
+            final_d, final_s, sym, variant=variant, rank=settings.rank))
         metadata = {
             "description": "albedo model built by mcmcfit pipeline build from lightstage captures",
             "synthetic": "true" if synthetic else "false",

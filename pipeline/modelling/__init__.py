@@ -7,7 +7,9 @@ pca_variants
 symmetry
     Mirroring per-vertex fields across the face's plane of symmetry.
 generalisation
-    Leave-one-out generalisation of the specular variants.
+    Leave-one-out generalisation of the specular variants (and the Gram-space folds).
+residual_variance
+    Leave-one-out per-vertex residual variance of the albedo PCA (what it cannot represent).
 
 This file imports nothing; its modules import only :mod:`albedo_model` (and each other).
 """

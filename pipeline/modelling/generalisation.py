@@ -32,14 +32,18 @@ from albedo_model.errors import InputError
 from albedo_model.io.atomic import atomic_path
 from pipeline.modelling.pca_variants import VARIANTS, augment_with_mirror
 
-__all__ = ["plot_specular_generalisation", "specular_generalisation"]
+__all__ = ["GramFold", "gram_eigenpairs", "plot_specular_generalisation",
+           "specular_generalisation"]
 
 
 _EIG_RTOL = 1e-12  # eigenvalues of a Gram matrix below this fraction of the largest are noise
 
 
-def _eig_desc(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenpairs of a PSD Gram matrix, largest first, numerically zero ones dropped."""
+def gram_eigenpairs(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs of a PSD Gram matrix, largest first, numerically zero ones dropped.
+
+    Also used by :mod:`pipeline.modelling.residual_variance`.
+    """
     lam, u = np.linalg.eigh(gram)
     lam, u = lam[::-1], u[:, ::-1]
     keep = lam > _EIG_RTOL * max(lam[0], 0.0) if lam.size else lam > 0
@@ -99,8 +103,27 @@ def _pad(errors: np.ndarray, kmax: int) -> np.ndarray:
     return np.concatenate([errors, np.full(kmax + 1 - len(errors), errors[-1])])
 
 
-class _Fold:
-    """Centred Gram quantities of one leave-one-out split (training set T, held-out y)."""
+class GramFold:
+    """Centred Gram quantities of one leave-one-out split (training set T, held-out y).
+
+    Parameters
+    ----------
+    gram : (N, N) array
+        ``X X^T`` of all (augmented) samples, uncentred.
+    train : (n,) int array
+        Rows of the training set.
+    held : int
+        Row of the held-out sample ``y``.
+
+    Attributes
+    ----------
+    gram : (n, n) array
+        ``X_c X_c^T`` of the training rows centred on their mean.
+    xy : (n,) array
+        ``X_c (y - mean_T)``.
+    yy : float
+        ``|y - mean_T|^2``.
+    """
 
     def __init__(self, gram: np.ndarray, train: np.ndarray, held: int) -> None:
         n = len(train)
@@ -177,15 +200,15 @@ def specular_generalisation(
     pred = {v: np.empty((n_sub, kmax + 1)) for v in variants}
     for i in range(n_sub):
         train = np.array([j for j in range(len(d)) if j % n_sub != i])
-        fd, fs = _Fold(gram_d, train, i), _Fold(gram_s, train, i)
+        fd, fs = GramFold(gram_d, train, i), GramFold(gram_s, train, i)
         for v in variants:
             if v == "independent":
-                lam, u = _eig_desc(fs.gram)
+                lam, u = gram_eigenpairs(fs.gram)
                 gains = (u.T @ fs.xy) ** 2 / lam
                 fit[v][i] = np.sqrt(_curve(gains, fs.yy, kmax) / dim)
                 pred[v][i] = np.sqrt(fs.yy / dim)
                 continue
-            _, u = _eig_desc(fd.gram + fs.gram if v == "concatenated" else fd.gram)
+            _, u = gram_eigenpairs(fd.gram + fs.gram if v == "concatenated" else fd.gram)
             u = u[:, :kmax]
             fit[v][i] = np.sqrt(_curve(_nested_gains(u, fs.gram, fs.xy), fs.yy, kmax) / dim)
             err = _predictions(u, fd.gram, fd.xy, fs.gram, fs.xy, fs.yy)

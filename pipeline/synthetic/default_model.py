@@ -3,12 +3,16 @@
 ``build_default_model`` runs the whole synthetic pipeline deterministically:
 procedural template head, Gaussian-process shape model and expression modes,
 spectral-skin subjects, symmetry-augmented PCA of diffuse and specular albedo
-(the paper's "transferred" variant: one shared coefficient vector), and returns
-a :class:`MorphableModel` whose metadata marks it synthetic. The file is written
+(the paper's "transferred" variant: one shared coefficient vector) with the
+per-vertex residual variance of both albedo parts estimated by leave-one-out
+over the subjects (:mod:`pipeline.modelling.residual_variance`: what the
+model cannot represent of an unseen face), and returns a
+:class:`MorphableModel` whose metadata marks it synthetic. The file is written
 in the AlbedoMM layout, so it is read by the same loader as AlbedoMM/BFM files.
 
 This module imports :mod:`albedo_model`; :mod:`pipeline.lightstage.colour`,
-:mod:`pipeline.modelling.pca_variants`, :mod:`pipeline.synthetic.subjects` and
+:mod:`pipeline.modelling.pca_variants`, :mod:`pipeline.modelling.residual_variance`,
+:mod:`pipeline.synthetic.subjects` and
 :mod:`pipeline.synthetic.head` modules are imported when the model is built.
 """
 
@@ -37,8 +41,10 @@ _STAGES = ("template head", "shape and expression model", "synthetic subjects",
 
 
 def _float32(part: PCAPart) -> PCAPart:
+    residual = part.residual_variance
     return PCAPart(part.mean.astype(np.float32), part.basis.astype(np.float32),
-                   part.variance.astype(np.float32), part.noise_variance)
+                   part.variance.astype(np.float32), part.noise_variance,
+                   None if residual is None else residual.astype(np.float32))
 
 
 def build_default_model(
@@ -66,10 +72,17 @@ def build_default_model(
     Returns
     -------
     MorphableModel
-        Float32 parts, shared albedo coefficients, symmetry map, the template's
-        Basel landmarks, and metadata (``synthetic``, colour space, gamma, seed).
+        Float32 parts, shared albedo coefficients, the albedo parts' leave-one-out
+        residual variances, symmetry map, the template's Basel landmarks, and
+        metadata (``synthetic``, colour space, gamma, seed; the provenance
+        records the residual variance's estimate and its RMS per channel).
     """
     from pipeline.modelling.pca_variants import build_albedo_parts
+    from pipeline.modelling.residual_variance import (
+        attach_residual_variance,
+        loo_residual_variance,
+        residual_rms_per_channel,
+    )
     from pipeline.lightstage.colour import camera_colour
     from pipeline.synthetic.head.shape_model import build_expression_model, build_shape_model
     from pipeline.synthetic.subjects import make_subjects
@@ -88,11 +101,24 @@ def build_default_model(
     say(_STAGES[3])
     parts = build_albedo_parts(diffuse, specular, head.symmetry, variant="transferred",
                                rank=albedo_rank)
+    residual = loo_residual_variance(diffuse, specular, head.symmetry, variant="transferred",
+                                     rank=albedo_rank)
+    parts = attach_residual_variance(parts, residual)
     verts = head.vertices.astype(np.float32)
     provenance = {
         "builder": "pipeline.synthetic.default_model", "build_version": BUILD_VERSION, "seed": seed,
         "subjects": n_subjects, "variant": "transferred", "symmetry_augmented": True,
         "camera_colour": camera_colour().metadata(),
+        "residual_variance": {
+            "estimate": "leave-one-out over the subjects (each held out with its mirror image), "
+                        "models of the others at the same rank, mean squared residual per "
+                        "vertex and channel",
+            "rank": residual.rank, "held_out_samples": residual.n_held_out,
+            "rms_diffuse_rgb": [round(float(v), 6)
+                                for v in residual_rms_per_channel(residual.diffuse)],
+            "rms_specular_rgb": [round(float(v), 6)
+                                 for v in residual_rms_per_channel(residual.specular)],
+        },
     }
     metadata = {
         "synthetic": "true",
@@ -115,7 +141,8 @@ _BUILDER_MODULES = ("synthetic.default_model", "synthetic.head.template_head",
                     "synthetic.head.head_sdf", "synthetic.head.landmarks",
                     "synthetic.head.regions", "synthetic.head.shape_model",
                     "synthetic.subjects", "synthetic.skin_spectral", "lightstage.colour",
-                    "modelling.pca_variants", "modelling.symmetry")
+                    "modelling.pca_variants", "modelling.symmetry",
+                    "modelling.generalisation", "modelling.residual_variance")
 
 
 def default_model_fingerprint() -> str:

@@ -62,6 +62,10 @@ def assert_parts_identical(
     for name in ("mean", "basis", "variance"):
         x, y = getattr(a, name), getattr(b, name)
         assert x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y), name
+    ra, rb = a.residual_variance, b.residual_variance
+    assert (ra is None) == (rb is None), "residual_variance"
+    if ra is not None:
+        assert ra.dtype == rb.dtype and np.array_equal(ra, rb), "residual_variance"
     if exact_noise:
         assert a.noise_variance == b.noise_variance
     else:  # files written elsewhere keep only float32

@@ -55,7 +55,8 @@ def test_every_proposal_changes_only_its_declared_blocks():
     image = default_image_proposal(landmark_point, solver_data=solver_data)
     stage = landmark_stage_proposal(landmark_point, shape_weight=1.0)
     unique = {leaf.name: leaf for leaf in _all_leaves(stage) + _all_leaves(image)}
-    assert len(unique) == 30 + 15  # schedule leaves + the inner leaves of one centred wrapper
+    # schedule leaves (with the gain-light exchange) + the inner leaves of one centred wrapper
+    assert len(unique) == 31 + 15
     for leaf in unique.values():
         seen = Block.NONE
         for i in range(200):
@@ -110,8 +111,9 @@ def test_reference_scales_and_weights():
         "translation-10": pose * 0.2 / 4.2 * 0.6,
         "shape-0.2": momo / 4 * 0.1, "albedo-0.1": momo / 4 * 0.5,
         "expression-0.025": momo / 2 * 0.2, "shape-caricature-0.2": momo / 4 * 0.2,
-        "color-transform-0.01": colour * 0.2, "color-transform-0.001": colour * 0.6,
-        "color-transform-0.0005": colour * 0.2,
+        # the reference's colour walks keep 70 %; 30 % are gain-light exchanges (ours)
+        "color-transform-0.01": colour * 0.2 * 0.7, "color-transform-0.001": colour * 0.6 * 0.7,
+        "color-transform-0.0005": colour * 0.2 * 0.7, "gain-light-0.02": colour * 0.3,
         "sh-spatial-0.05": light / 6, "sh-bands-0.1": light / 6, "sh-intensity-0.05": light / 6,
         "sh-perturb-fixed-0.001": light / 6, "sh-colour-0.01": light / 6,
         "sh-solver": light / 6,

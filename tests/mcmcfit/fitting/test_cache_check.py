@@ -16,7 +16,10 @@ from mcmcfit.sampling.kernel import ACCEPTED, REJECTION_STAGES
 
 pytestmark = pytest.mark.embree
 
-CONFIG = FitConfig(steps=300, landmark_steps=100, thin=5, sigma_lm=2.0, check_cache=True)
+# one chain in this process: the tests below patch the cache table of this process
+CONFIG = FitConfig(steps=400, warmup_steps=0, landmark_steps=100, thin=5, sigma_lm=2.0,
+                   check_cache=True,
+                   chains=1, parallel=False, mala_weight=0.5)
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +40,8 @@ def test_check_cache_passes_over_every_move_kind(case):
     for kind in ("yaw", "pitch", "roll", "distance", "focal", "translation", "shape",
                  "expression", "albedo", "albedo-caricature", "albedo-conditional",
                  "light-albedo", "color-transform", "sh-spatial", "sh-bands", "sh-intensity",
-                 "sh-perturb", "sh-colour", "sh-solver", "specular-exponent"):
+                 "sh-perturb", "sh-colour", "light-conditional", "gain-light", "mala",
+                 "specular-exponent"):
         assert any(k.startswith(kind) for k in kinds), (kind, sorted(kinds))
     names = rec.proposal_names
     touched = Block.NONE
@@ -57,6 +61,8 @@ _PREFIX_BLOCKS = (
     ("translation", Block.POSE), ("focal", Block.CAMERA),
     ("shape", Block.SHAPE), ("expression", Block.EXPRESSION),
     ("light-albedo", Block.LIGHT | Block.ALBEDO), ("albedo", Block.ALBEDO),
+    ("light-conditional", Block.LIGHT), ("gain-light", Block.COLOR_TRANSFORM | Block.LIGHT),
+    ("mala", Block.SHAPE | Block.EXPRESSION | Block.POSE | Block.CAMERA),
     ("color-transform", Block.COLOR_TRANSFORM), ("sh-", Block.LIGHT),
     ("specular-exponent", Block.SPECULAR_EXPONENT),
 )
@@ -66,7 +72,7 @@ _PREFIX_BLOCKS = (
     ("geometry", Block.EXPRESSION), ("raycast", Block.SHAPE), ("albedo", Block.ALBEDO),
     ("light", Block.LIGHT), ("shading", Block.SPECULAR_EXPONENT),
     ("landmarks", Block.CAMERA), ("albedo_system", Block.COLOR_TRANSFORM),
-    ("light_data", Block.ALBEDO),
+    ("light_data", Block.ALBEDO), ("light_system", Block.SPECULAR_EXPONENT),
 ])
 def test_a_dependency_removed_from_the_table_is_caught(case, monkeypatch, stage, block):
     model, image, clicks = case

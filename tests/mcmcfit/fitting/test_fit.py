@@ -12,7 +12,7 @@ from face_factory import scene, small_face_model, synthetic_target
 from albedo_model.errors import InputError
 from albedo_model.params import Block, ColorTransform, SHLight
 from albedo_model.render.renderer import Renderer
-from mcmcfit.sampling.chain import read_chains_h5
+from mcmcfit.sampling.chain_file import read_chains_h5
 from mcmcfit.targets.face import FaceTarget
 from mcmcfit.fitting.fit import fit
 from mcmcfit.fitting.config import FitConfig
@@ -43,7 +43,9 @@ def test_fit_result_is_complete_and_consistent(small_fit):
     res, events, truth = small_fit
     assert len(res.chains) == 2
     for c in res.chains:
-        assert c.stage1.steps == 300 and c.stage2.steps == 300
+        # the landmark stage's record is the chosen start's chain (the other starts' short
+        # runs, 20 % of the budget in all, are not part of it)
+        assert 0.8 * 300 <= c.stage1.steps <= 300 and c.stage2.steps == 300
         assert c.stage2.samples.shape == (60, res.layout.size)
         # the image stage never gets worse than its start in the best sample
         assert c.stage2.best_image.log_lik_img >= c.stage2.log_lik_img[0] - 1e-9 or \
@@ -51,12 +53,13 @@ def test_fit_result_is_complete_and_consistent(small_fit):
     assert res.best.log_lik_img == max(c.stage2.best_image.log_lik_img for c in res.chains)
     assert math.isfinite(res.best.log_lik_img) and math.isfinite(res.best_posterior.log_posterior)
     assert sum(s.proposed for s in res.acceptance.values()) == 600
-    assert sum(s.proposed for s in res.acceptance_stage1.values()) == 600
+    assert sum(s.proposed for s in res.acceptance_stage1.values()) == sum(
+        c.stage1.steps for c in res.chains)
     assert {"stage1_s", "stage2_s", "total_s", "stage2_steps_per_s"} <= set(res.timings)
     assert res.mean_params is not None
     assert res.get_chain(2).shape == (2, 60, res.layout.size)
     assert set(res.diagnostics["stage2"]) >= {"log_posterior", "log_lik_img", "pose.yaw"}
-    assert ("image", 1, 300, 300) in events and ("landmarks", 0, 300, 300) in events
+    assert ("image", 1, 390, 390) in events and ("landmarks", 0, 300, 300) in events
     assert abs(res.best.params.pose.yaw - truth.pose.yaw) < 0.1
     json.dumps(res.summary())  # JSON-able
 
@@ -64,8 +67,14 @@ def test_fit_result_is_complete_and_consistent(small_fit):
 def test_same_seed_same_chain(small_model, small_fit):
     res, _, truth = small_fit
     image, clicks = synthetic_target(small_model, truth)
-    again = fit(image, clicks, small_model, config=res.config.replace(chains=1), seed=11)
+    again = fit(image, clicks, small_model, config=res.config, seed=11)
     assert np.array_equal(again.chains[0].stage2.samples, res.chains[0].stage2.samples)
+    # with a fixed noise model (nothing pooled across chains) a chain does not
+    # depend on how many others run beside it
+    fixed = res.config.replace(noise="fixed")
+    one = fit(image, clicks, small_model, config=fixed.replace(chains=1), seed=11)
+    two = fit(image, clicks, small_model, config=fixed, seed=11)
+    assert np.array_equal(one.chains[0].stage2.samples, two.chains[0].stage2.samples)
 
 
 def test_chain_file_round_trip(small_fit, tmp_path):

@@ -15,7 +15,7 @@ from albedo_model.io.momo_h5 import write_model_h5
 from albedo_model.io.rps import read_rps
 from albedo_model.params import ColorTransform, SHLight
 from albedo_model.render.renderer import Renderer
-from mcmcfit.sampling.chain import read_chains_h5
+from mcmcfit.sampling.chain_file import read_chains_h5
 from mcmcfit.cli import main
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.jobs.fit_job import LoadedModel, atomic_folder, fit_into_folder
@@ -95,6 +95,34 @@ def test_posterior_npz_matches_the_chains(result_folder, small_model):
     best = read_rps(out / "best.rps")
     r = Renderer(small_model, threads=1)
     np.testing.assert_array_equal(post["visible"], visible_vertices(r, r.init_state(best)))
+
+
+def test_posterior_nc_holds_the_chains_and_the_target(result_folder, small_model, target):
+    """posterior.nc against chain.h5 (an independent path), and ArviZ reads it as is."""
+    from mcmcfit.sampling.diagnostics import arviz
+
+    out, summary = result_folder
+    az = arviz()
+    idata = az.from_netcdf(out / "posterior.nc")
+    chains, layout, _ = read_chains_h5(out / "chain.h5")
+    n = min(c.stage2.samples.shape[0] for c in chains)
+    start = int(CFG.burn_fraction * n)
+    assert idata.posterior.sizes["chain"] == 2 and idata.posterior.sizes["draw"] == n - start
+    for i, c in enumerate(chains):
+        np.testing.assert_array_equal(idata.posterior["albedo"][i],
+                                      c.stage2.samples[start:n, layout.slice("albedo")])
+        np.testing.assert_array_equal(idata.sample_stats["lp"][i],
+                                      c.stage2.log_posterior[c.stage2.sample_step[start:n]])
+    np.testing.assert_allclose(idata.observed_data["image"], np.clip(target[0], 0, 1))
+    assert set(idata.observed_data["landmark"].values) == set(target[1])
+    assert idata.posterior.attrs["seed"] == 5
+    assert idata.posterior.attrs["model_sha256"] == "0" * 64
+    if "albedo_mean" in idata.posterior:  # the small model has eye landmarks only
+        assert "eyes" in idata.posterior["region"].values
+    with np.errstate(all="ignore"):
+        table = az.summary(idata, var_names=["pose", "albedo"])
+    assert "albedo[0]" in table.index
+    assert "posterior.nc" in summary["files"]
 
 
 def test_best_rps_rerenders_like_fit_png(result_folder, small_model, tmp_path):

@@ -70,3 +70,70 @@ def test_a_short_fit_says_it_has_not_converged(tmp_path):
                for w in caught)
     assert "NOT converged" in (tmp_path / "out" / "report.html").read_text()
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["converged"] is False
+
+
+# -- monitored_series ---------------------------------------------------------------------
+
+
+def _record(rng, layout, n_samples=1000, thin=10, phi=0.9, stage="image"):
+    from mcmcfit.sampling.chain import BestSample, ChainRecord
+
+    steps = n_samples * thin
+    x = _ar1(rng, phi, layout.size, n_samples).T.copy()  # (n, d), every column moves
+    x[:, layout.index("pose.scaling")] = 1.0  # never sampled
+    best = BestSample(None, -1, 0.0, 0.0, 0.0)
+    return ChainRecord(stage, "mh", thin, steps, layout, np.arange(n_samples) * thin + thin - 1, x,
+                       rng.normal(size=steps), rng.normal(size=steps), rng.normal(size=steps),
+                       np.zeros(steps, np.int32), ("walk",), np.ones(steps, bool),
+                       np.zeros(steps, np.int8), best, best, best)
+
+
+def _regions_basis(rng, layout, n_regions=7):
+    from mcmcfit.sampling.derived import RegionAlbedo
+
+    return RegionAlbedo(tuple(f"region{i}" for i in range(n_regions)),
+                        rng.uniform(0.2, 0.6, (n_regions, 3)),
+                        rng.normal(0, 0.01, (n_regions, layout.n_albedo, 3)))
+
+
+def test_monitored_series_holds_what_moves_the_log_densities_and_the_regions():
+    from mcmcfit.sampling.convergence import LOG_DENSITIES, monitored_series
+    from mcmcfit.sampling.derived import region_albedo_means
+    from mcmcfit.sampling.param_vector import ParamLayout
+
+    rng = np.random.default_rng(0)
+    layout = ParamLayout(4, 5, 6, 2)
+    recs = [_record(rng, layout, 200), _record(rng, layout, 180)]
+    basis = _regions_basis(rng, layout, 2)
+    s = monitored_series(recs, layout, basis, burn_fraction=0.25)
+    assert list(s)[:4] == list(LOG_DENSITIES)
+    assert "pose.scaling" not in s and "pose.yaw" in s and "albedo.5" in s
+    assert s["log_lik_img"].shape == (2, 1800 - 450)  # per step, cut to the shortest
+    assert s["pose.yaw"].shape == (2, 180 - 45)  # kept samples
+    np.testing.assert_array_equal(s["pose.yaw"][1], recs[1].samples[45:180, 0])
+    derived = [k for k in s if k.startswith("albedo_mean.")]
+    assert derived == [f"albedo_mean.region{i}.{c}" for i in range(2) for c in "rgb"]
+    means = region_albedo_means(recs[0].samples[45:180, layout.slice("albedo")], basis)
+    np.testing.assert_allclose(s["albedo_mean.region1.b"][0], means[:, 1, 2])
+    landmarks = monitored_series([_record(rng, layout, 50, stage="landmarks")], layout)
+    assert "log_lik_img" not in landmarks and "log_posterior" in landmarks
+    assert not any(k.startswith("albedo_mean") for k in landmarks)
+
+
+def test_the_stop_rule_check_is_fast():
+    """~140 parameters + 21 region quantities, 2 chains x 1000 draws: well under 0.5 s."""
+    import time
+
+    from mcmcfit.sampling.convergence import monitored_series
+    from mcmcfit.sampling.param_vector import ParamLayout
+
+    rng = np.random.default_rng(1)
+    layout = ParamLayout(9, 50, 50, 5)  # 150 columns, 149 move
+    recs = [_record(rng, layout, 1000, phi=0.99) for _ in range(2)]
+    basis = _regions_basis(rng, layout)
+    judge(monitored_series(recs, layout, basis))  # warm-up (imports)
+    t0 = time.perf_counter()
+    verdict = judge(monitored_series(recs, layout, basis))
+    seconds = time.perf_counter() - t0
+    assert verdict["n_quantities"] == 4 + 149 + 21 and not verdict["converged"]
+    assert seconds < 0.5, seconds

@@ -1,0 +1,76 @@
+"""Data of the SH light's exact conditional, computed from the accepted state it is handed.
+
+:class:`RenderLightSystem` is the ``data(state)`` callable of
+:class:`proposals.light_conditional.LightConditional`: at every face pixel of
+the accepted render whose target is not saturated, the transport of each SH
+coefficient (:func:`albedo_model.render.light_basis.light_basis`) times the
+pixel's diffuse and specular albedo, reduced to the normal equations with the
+colour transform (:func:`proposals.light_conditional.light_system`). It
+depends on the blocks of ``STAGE_DEPS["light_system"]`` only (never on the
+light), on whose version stamps it is kept.
+
+This module imports :mod:`albedo_model` (errors, render, shading.effects),
+:mod:`proposals` (light_conditional, base) and :mod:`mcmcfit.proposal_data.face_pixels`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from albedo_model.errors import InputError
+from albedo_model.render.cache_table import Kept, stage_key
+from albedo_model.render.light_basis import light_basis
+from albedo_model.render.state import RenderState
+from albedo_model.shading.effects import offset_count
+from mcmcfit.proposal_data.face_pixels import render_state_of, unsaturated
+from proposals.base import ProposalState
+from proposals.light_conditional import LightSystem, light_system
+
+__all__ = ["RenderLightSystem"]
+
+
+class RenderLightSystem:
+    """``data(state) -> LightSystem`` over all usable face pixels of the accepted render, or None.
+
+    Parameters
+    ----------
+    target_linear : (H, W, 3) float array
+        The linearised target image.
+    """
+
+    def __init__(self, target_linear: np.ndarray):
+        self._target = np.asarray(target_linear, np.float64).reshape(-1, 3)
+        self._ok = unsaturated(self._target)
+        self._system = Kept()
+
+    def __call__(self, state: ProposalState) -> LightSystem | None:
+        """Return the light system of the accepted ``state``'s render (None: nothing to draw)."""
+        rs = render_state_of(state, "light conditional data")
+        key = stage_key(rs.versions, "light_system")
+        return self._system.get(key, lambda: self._compute(rs, key))
+
+    def _compute(self, rs: RenderState, key: tuple) -> LightSystem | None:
+        hits = rs.hits
+        if hits.prim_id.shape[0] != self._target.shape[0]:
+            raise InputError("light conditional data: render and target image sizes differ")
+        basis = light_basis(rs)
+        if basis is None:
+            return None
+        face = np.flatnonzero((hits.prim_id >= 0) & self._ok)
+        if face.size == 0:
+            return None
+        at = rs.positions(face)
+        b, s = basis
+        albedo = rs.pixel_albedo.value
+        rho = np.stack([np.asarray(c)[at] for c in albedo.diffuse], axis=1)  # (N, 3)
+        g = rho[:, :, None] * b[at][:, None, :]
+        if s is not None and albedo.specular is not None:
+            spec = np.stack([np.asarray(c)[at] for c in albedo.specular], axis=1)
+            g = g + spec[:, :, None] * s[at][:, None, :]
+        p = rs.params
+        if rs.effects.color_transform:
+            mat = p.color_transform.matrix()
+            off = offset_count(rs.effects) * np.asarray(p.color_transform.offset, np.float64)
+        else:
+            mat, off = np.eye(3), np.zeros(3)
+        return light_system(g, mat, self._target[face] - off, key)

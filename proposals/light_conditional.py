@@ -1,0 +1,144 @@
+"""The SH light's exact Gaussian conditional: a Gibbs draw of all 27 light coefficients.
+
+With geometry, pose, camera, albedo, colour transform and specular exponent
+fixed, a rendered face pixel is affine in the SH light ``L`` (K, 3):
+``R_pc = sum_d M_cd sum_i G_pdi L_id + o_c`` with ``G_pdi = rho_pd B_pi + s_pd S_pi``
+(diffuse albedo times Lambert transport plus specular albedo times the lobe's
+transport; :mod:`albedo_model.render.light_basis`), ``M``, ``o`` the colour
+transform. With Gaussian pixel noise of sd ``sigma`` and the independent
+Gaussian prior ``L_id ~ N(mu_id, tau_id^2)``, the conditional of ``vec L`` is
+Gaussian with precision ``diag(1 / tau^2) + A^T A / sigma^2`` and mean
+``Lambda^-1 (mu / tau^2 + A^T (t - o) / sigma^2)``. It is exact up to the clamp
+at 1 (pixels rendered at or above the saturation limit under the current light
+are left out) and the face mask, which does not depend on the light.
+
+:class:`LightConditional` draws ``L' ~ N(m, Lambda^-1)``: an independence
+proposal whose mean and precision do not depend on ``L``, so the exact ratio is
+``log N(L; m, Lambda^-1) - log N(L'; m, Lambda^-1)``; the kernel's joint MH test
+corrects what the clamp leaves.
+
+This module imports only :mod:`albedo_model.params`, :mod:`albedo_model.render.cache_table`
+and :mod:`proposals.base`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+
+from albedo_model.params import Block, SHLight
+from albedo_model.render.cache_table import Kept
+from proposals.base import Move, ProposalState, check_scale, no_move
+
+__all__ = ["LightConditional", "LightSystemData", "LightSystem", "light_system"]
+
+
+class LightSystem(NamedTuple):
+    """The render at N face pixels as an affine function of ``vec L`` (index ``3 i + d``).
+
+    Attributes
+    ----------
+    gram : (3K, 3K) float64
+        ``A^T A`` over the pixels.
+    rhs : (3K,) float64
+        ``A^T (t - o)``.
+    n_pixels : int
+    key : tuple or None
+        Version stamps of the blocks it reads (the factorisation is kept while unchanged).
+    """
+
+    gram: np.ndarray
+    rhs: np.ndarray
+    n_pixels: int
+    key: tuple | None = None
+
+
+def light_system(g: np.ndarray, mat: np.ndarray, target_minus_offset: np.ndarray,
+                 key: tuple | None = None) -> LightSystem:
+    """Normal-equation terms from per-pixel transport.
+
+    Parameters
+    ----------
+    g : (N, 3, K) float array
+        ``G_pdi``: albedo times transport of each SH coefficient, per albedo channel d.
+    mat : (3, 3) float array
+        Colour-transform matrix ``M`` (output channel c from channel d: ``M_cd``).
+    target_minus_offset : (N, 3) float array
+        ``t_pc - o_c``.
+    key : tuple, optional
+    """
+    g = np.asarray(g, np.float64)
+    m = np.asarray(mat, np.float64)
+    k = g.shape[2]
+    h = np.einsum("pdi,pej->deij", g, g)  # (3, 3, K, K)
+    mtm = m.T @ m
+    gram = np.einsum("de,deij->idje", mtm, h).reshape(3 * k, 3 * k)
+    u = np.asarray(target_minus_offset, np.float64) @ m  # u_pd = sum_c (t_pc - o_c) M_cd
+    rhs = np.einsum("pdi,pd->id", g, u).reshape(3 * k)
+    return LightSystem(gram, rhs, int(g.shape[0]), key)
+
+
+#: ``data(state) -> LightSystem or None`` of the accepted state.
+LightSystemData = Callable[[ProposalState], "LightSystem | None"]
+
+
+def _conditional(system: LightSystem, sigma: float, prior_mean: np.ndarray,
+                 prior_sd: np.ndarray):
+    prec0 = 1.0 / (prior_sd.reshape(-1) ** 2)
+    lam = np.diag(prec0) + system.gram / (sigma * sigma)
+    chol = np.linalg.cholesky(lam)
+    h = prec0 * prior_mean.reshape(-1) + system.rhs / (sigma * sigma)
+    mean = np.linalg.solve(chol.T, np.linalg.solve(chol, h))
+    return mean, chol
+
+
+@dataclass(eq=False)
+class LightConditional:
+    """Independence proposal ``vec L' ~ N(m, Lambda^-1)`` from the light's Gaussian conditional.
+
+    Parameters
+    ----------
+    data : LightSystemData
+    prior_mean, prior_sd : (K, 3) float arrays
+        The Gaussian prior of the SH light.
+    sigma : float
+        Effective pixel noise of the likelihood (sigma x sqrt(temperature)).
+    name : str
+    """
+
+    data: LightSystemData
+    prior_mean: np.ndarray
+    prior_sd: np.ndarray
+    sigma: float = 0.043
+    name: str = "light-conditional"
+    touches: ClassVar[Block] = Block.LIGHT
+    _factorisation: Kept = field(default_factory=Kept, repr=False)
+
+    def __post_init__(self) -> None:
+        """Validate ``sigma`` and the prior."""
+        check_scale(self.sigma, "light conditional sigma")
+        self.prior_mean = np.asarray(self.prior_mean, np.float64)
+        self.prior_sd = np.asarray(self.prior_sd, np.float64)
+        if self.prior_mean.shape != self.prior_sd.shape or np.any(self.prior_sd <= 0):
+            raise ValueError("light conditional: prior mean and sd must match, sd > 0")
+
+    def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
+        """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
+        params = state.params
+        L = np.asarray(params.environment_map.coefficients, np.float64)
+        z = rng.normal(0.0, 1.0, L.size)
+        if L.shape != self.prior_mean.shape:
+            return no_move(params, self.name)
+        system = self.data(state)
+        if system is None or system.n_pixels == 0:
+            return no_move(params, self.name)
+        mean, chol = self._factorisation.get(system.key, lambda: _conditional(
+            system, self.sigma, self.prior_mean, self.prior_sd))
+        new = mean + np.linalg.solve(chol.T, z)
+        d = chol.T @ (L.reshape(-1) - mean)
+        ratio = -0.5 * float(d @ d) + 0.5 * float(z @ z)
+        return Move(params._replace(environment_map=SHLight(new.reshape(L.shape))), ratio,
+                    Block.LIGHT, self.name, joint=True)

@@ -1,0 +1,79 @@
+"""Chains in worker processes: the same chains as in this process; warm-up, noise model, stop rule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from face_factory import scene, small_face_model, synthetic_target
+
+from mcmcfit.fitting.chain_pool import ProcessPool, WorkerError
+from mcmcfit.fitting.config import FitConfig
+from mcmcfit.fitting.fit import fit
+from mcmcfit.fitting.initialisation import initial_params
+from mcmcfit.fitting.problem import FitProblem
+from mcmcfit.sampling.param_vector import ParamLayout
+
+
+@pytest.fixture(scope="module")
+def case():
+    model = small_face_model()
+    truth = scene(64, 64, yaw=0.25, pitch=-0.1)
+    image, clicks = synthetic_target(model, truth)
+    return model, image, clicks
+
+
+def _cfg(**kw) -> FitConfig:
+    base = dict(steps=200, landmark_steps=200, warmup_steps=200, adapt_window=50,
+                check_every=100, chains=2, thin=5, sigma_lm=2.0, noise_updates=1)
+    return FitConfig(**{**base, **kw})
+
+
+def test_process_chains_are_the_in_process_chains(case):
+    model, image, clicks = case
+    a = fit(image, clicks, model, config=_cfg(parallel=True), seed=3)
+    b = fit(image, clicks, model, config=_cfg(parallel=False), seed=3)
+    for ca, cb in zip(a.chains, b.chains):
+        for stage in ("stage1", "warmup", "stage2"):
+            ra, rb = getattr(ca, stage), getattr(cb, stage)
+            assert np.array_equal(ra.samples, rb.samples), stage
+            assert np.array_equal(ra.log_lik_img, rb.log_lik_img), stage
+    assert a.noise == b.noise and a.stopping["reason"] == b.stopping["reason"]
+
+
+def test_warmup_is_separate_and_the_noise_model_is_recorded(case):
+    model, image, clicks = case
+    res = fit(image, clicks, model, config=_cfg(parallel=False), seed=4)
+    for c in res.chains:
+        assert c.warmup.steps == 200 and c.warmup.stage == "warmup"
+        assert c.stage2.steps == 200 and c.stage2.stage == "image"
+        assert set(c.warmup.extra["scales"]) >= {"yaw", "shape", "albedo", "light"}
+    assert res.noise["source"] == "estimated" and res.noise["sigma"] > 0
+    assert res.noise["temperature"] >= 1.0
+    assert res.stopping["reason"] in ("converged", "max steps")
+    assert [c["kept_steps"] for c in res.stopping["checks"]] == [100, 200][: len(
+        res.stopping["checks"])]
+    fixed = fit(image, clicks, model, config=_cfg(parallel=False, noise="fixed"), seed=4)
+    assert fixed.noise["source"] == "fixed" and fixed.noise["temperature"] == 40.0
+
+
+def test_a_time_budget_ends_the_kept_draws_early(case):
+    model, image, clicks = case
+    res = fit(image, clicks, model, config=_cfg(parallel=False, steps=100_000, check_every=50,
+                                                 time_budget=1.0), seed=5)
+    assert res.stopping["reason"] == "time budget"
+    assert 0 < res.stopping["kept_steps"] < 100_000
+    assert all(c.stage2.steps == res.stopping["kept_steps"] for c in res.chains)
+
+
+def test_a_failing_worker_raises_with_its_traceback(case):
+    model, image, clicks = case
+    cfg = _cfg()
+    p0 = initial_params(model, 64, 64, n_shape=cfg.n_shape, n_albedo=cfg.n_albedo,
+                        n_expression=cfg.n_expression)
+    problem = FitProblem(image, clicks, None, None, model, cfg, p0, ParamLayout.for_params(p0))
+    pool = ProcessPool(problem, np.random.SeedSequence(0).spawn(2))
+    try:
+        with pytest.raises(WorkerError, match="no_such_phase"):
+            pool.call("no_such_phase")
+    finally:
+        pool.close()
