@@ -36,7 +36,7 @@ from albedo_model.render.cache_table import Kept
 from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = ["SATURATION_LIMIT", "AlbedoConditional", "AlbedoData", "AlbedoSystem",
-           "LightAlbedoExchange", "albedo_system"]
+           "LightAlbedoExchange", "albedo_system", "independence_draw"]
 
 #: Linear intensity at and above which a pixel counts as clipped (by the camera in a
 #: target, by the clamp at 1 in a render).
@@ -152,6 +152,20 @@ def _log_density_terms(c: np.ndarray, cond) -> float:
     return -0.5 * float(d @ d) + float(np.sum(np.log(np.diag(chol))))
 
 
+def independence_draw(x: np.ndarray, z: np.ndarray, cond) -> tuple[np.ndarray, float]:
+    """Draw ``x' ~ N(m, Lambda^-1)`` from standard normals ``z``; return ``(x', log ratio)``.
+
+    ``cond`` is ``(m, L)`` with ``L`` the Cholesky factor of the precision; the
+    ratio ``log N(x; m, Lambda^-1) - log N(x'; m, Lambda^-1)`` is that of an
+    independence proposal (the same mean and precision both ways).
+    """
+    mean, chol = cond
+    new = mean + np.linalg.solve(chol.T, z)  # (x' - m)^T Lambda (x' - m) = z^T z
+    ratio = _log_density_terms(x, cond) + 0.5 * float(z @ z) - float(
+        np.sum(np.log(np.diag(chol))))
+    return new, ratio
+
+
 @dataclass(eq=False)
 class AlbedoConditional:
     """Independence proposal ``c' ~ N(m, Lambda^-1)`` from the albedo's Gaussian conditional.
@@ -197,10 +211,7 @@ class AlbedoConditional:
         cond = self.conditional(state) if c.shape[0] else None
         if cond is None:
             return no_move(params, self.name)
-        mean, chol = cond
-        new = mean + np.linalg.solve(chol.T, z)  # (c' - m)^T Lambda (c' - m) = z^T z
-        ratio = _log_density_terms(c, cond) + 0.5 * float(z @ z) - float(
-            np.sum(np.log(np.diag(chol))))
+        new, ratio = independence_draw(c, z, cond)
         return Move(params._replace(momo=params.momo._replace(albedo=new)), ratio, Block.ALBEDO,
                     self.name, joint=True)
 

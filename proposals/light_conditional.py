@@ -18,7 +18,7 @@ proposal whose mean and precision do not depend on ``L``, so the exact ratio is
 corrects what the clamp leaves.
 
 This module imports only :mod:`albedo_model.params`, :mod:`albedo_model.render.cache_table`
-and :mod:`proposals.base`.
+and :mod:`proposals` (albedo_solver, base).
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ import numpy as np
 
 from albedo_model.params import Block, SHLight
 from albedo_model.render.cache_table import Kept
+from proposals.albedo_solver import independence_draw
 from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = ["LightConditional", "LightSystemData", "LightSystem", "light_system"]
@@ -135,10 +136,8 @@ class LightConditional:
         system = self.data(state)
         if system is None or system.n_pixels == 0:
             return no_move(params, self.name)
-        mean, chol = self._factorisation.get(system.key, lambda: _conditional(
+        cond = self._factorisation.get(system.key, lambda: _conditional(
             system, self.sigma, self.prior_mean, self.prior_sd))
-        new = mean + np.linalg.solve(chol.T, z)
-        d = chol.T @ (L.reshape(-1) - mean)
-        ratio = -0.5 * float(d @ d) + 0.5 * float(z @ z)
+        new, ratio = independence_draw(L.reshape(-1), z, cond)
         return Move(params._replace(environment_map=SHLight(new.reshape(L.shape))), ratio,
                     Block.LIGHT, self.name, joint=True)

@@ -45,6 +45,7 @@ from mcmcfit.fitting.landmark_starts import DEFAULT_STARTS, landmark_stage
 from mcmcfit.targets.landmarks import LandmarkTarget
 from mcmcfit.fitting.problem import FitProblem, Posterior, build_posterior, provisional_noise
 from mcmcfit.proposal_data.albedo import RenderAlbedoData
+from mcmcfit.proposal_data.face_pixels import unsaturated
 from mcmcfit.proposal_data.light import RenderLightData
 from mcmcfit.proposal_data.light_system import RenderLightSystem
 from mcmcfit.sampling.chain import ChainRecord, ChainRecorder, ChainResult
@@ -105,6 +106,7 @@ class ChainSession:
         self.mala_step = float(self.cfg.mala_step)
         self.mala_diag = initial_diagonal(problem.start)
         self._gradient = None
+        self._build_data()
         self._build_proposal()
         self.stage1: ChainRecord | None = None
         self.start: RenderParameter = problem.start
@@ -116,13 +118,21 @@ class ChainSession:
         self._pending: dict[str, tuple[int, int]] = {}
 
     # -- proposals -------------------------------------------------------------------
-    def _build_proposal(self) -> None:
+    def _build_data(self) -> None:
+        """Build the data-driven proposals' data: functions of the render and the image only.
+
+        Built once: neither the noise model nor the step sizes change them, so
+        their kept systems survive every rebuild of the proposal.
+        """
         cfg, post = self.cfg, self.posterior
         self.light_data = RenderLightData(post.renderer, post.image_target.linear,
                                           n_points=cfg.solver_points, seed=self._data_seeds[0])
         self.light_system = RenderLightSystem(post.image_target.linear)
         self.albedo_data = RenderAlbedoData(post.renderer, post.image_target.linear,
                                             n_points=cfg.albedo_points, seed=self._data_seeds[1])
+
+    def _build_proposal(self) -> None:
+        cfg, post = self.cfg, self.posterior
         specular_weight = cfg.specular_weight if post.renderer.specular else 0.0
         light_conditional = None
         if cfg.light_conditional_weight > 0:
@@ -273,7 +283,7 @@ class ChainSession:
                 params = self.problem.layout.from_vector(rec.samples[i], self.problem.start)
         rendered = self.posterior.renderer.render(params)
         target = self.posterior.image_target.linear
-        usable = np.all(target < 0.97, axis=2)
+        usable = unsaturated(target.reshape(-1, 3)).reshape(target.shape[:2])
         # the side render made ``params`` the renderer's accepted geometry: restore the chain's
         self.state = init(self.state.params, self.posterior.face, image=True)
         return estimate_noise(target, rendered.image, rendered.mask, usable=usable)
@@ -328,23 +338,6 @@ class ChainSession:
             self._t_warm += dt
         else:
             self._t_kept += dt
-
-
-def _run(rng, start: RenderParameter, target, proposal, n_steps: int, *, image: bool, thin: int,
-         layout, check=None) -> ChainRecord:
-    t0 = time.perf_counter()
-    state = init(start, target, image=image)
-    recorder = ChainRecorder(layout, n_steps, thin, state, stage="image" if image else "landmarks")
-    if check is not None:
-        check(-1, state)
-
-    def callback(i, s, info):
-        recorder(i, s, info)
-        if check is not None:
-            check(i, s, info)
-
-    run(rng, state, target, proposal, n_steps, image=image, callback=callback)
-    return recorder.record(time.perf_counter() - t0)
 
 
 def _with_solved_light(target, params: RenderParameter, data: RenderLightData) -> RenderParameter:
