@@ -1,6 +1,7 @@
 """albedo_model: the morphable albedo model and how it forms an image.
 
-PCA parts, the morphable model, its face regions (``regions``), scene parameters,
+PCA parts, the morphable model, its face regions (``regions``), scene parameters (and
+all their continuous entries as one vector, ``scene_vector``),
 file formats (``io``), the
 Embree ray caster and the JAX shading. This is the lowest package: it imports
 nothing from ``pipeline``, ``proposals`` or ``mcmcfit``.

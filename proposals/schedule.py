@@ -83,7 +83,9 @@ _SCALE_WEIGHTS = (0.2, 0.6, 0.2)
 #: Families of the image-stage proposals whose step sizes warm-up adapts (one
 #: multiplier each, :data:`Scales`); the data-driven draws have no step size.
 FAMILIES = ("yaw", "pitch", "roll", "translation", "distance", "focal", "shape", "albedo",
-            "expression", "color-transform", "light", "specular-exponent")
+            "expression", "color-transform", "light", "specular-exponent",
+            "pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading")
+
 
 #: ``{family: multiplier}`` of every step size of a family (missing: 1). Proposal
 #: names keep the reference scale (``"yaw-0.1"`` whatever its multiplier), so that

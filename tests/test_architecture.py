@@ -63,6 +63,7 @@ LAYERS: dict[str, list[list[str]]] = {
     ],
     "proposals": [
         ["proposals"],
+        ["proposals.laplace"],
     ],
     "pipeline": [
         ["pipeline", "pipeline.texturing", "pipeline.modelling"],

@@ -32,8 +32,16 @@ light_basis
 differentiable
     The render of the face pixels at fixed ray-cast triangles as a JAX function of
     the geometry (for gradient moves).
+jacobian
+    Their colours' Jacobian in every continuous scene parameter (forward mode) and the
+    reverse-mode gradient of a Gaussian read-out.
+pixel_cast
+    A private ray cast at other parameters; pixels with fixed triangles.
+region
+    The interior of a render: away from its silhouette and occlusion contours.
 
-The package imports :mod:`albedo_model` (camera, errors, model, params, pca) and
+The package imports :mod:`albedo_model` (camera, errors, model, params, pca,
+scene_vector) and
 :mod:`albedo_model.shading` (effects, image_formation, interpolation); nothing above
 ``albedo_model``. This file imports :mod:`~albedo_model.render.cache_table`,
 :mod:`~albedo_model.render.renderer` and :mod:`~albedo_model.render.state`.

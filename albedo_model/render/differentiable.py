@@ -14,17 +14,15 @@ formation (:func:`~albedo_model.shading.image_formation.pixel_light`,
 :func:`~albedo_model.shading.image_formation.combine_pixels`) with its view
 directions (the reversed pixel rays).
 
-Visibility is not differentiated (a pixel keeps its triangle, whose plane is
-extrapolated beyond it). At the cast's parameters the colours equal the
-renderer's image; for moves that change no pixel's triangle the derivatives
-are the renderer's. Principal point, pose scaling, view, near plane and image
-size are constants; cast shadows are not supported. The dtype is the inputs'
-(float32 as the renderer; float64 inside ``jax.enable_x64()`` for checks).
+Visibility is not differentiated (a pixel keeps its triangle, its plane
+extrapolated beyond it); at the cast's parameters the colours equal the
+renderer's image. Principal point, pose scaling, view, near plane and image
+size are constants (:mod:`albedo_model.render.jacobian` differentiates in them
+too); cast shadows are not supported. The dtype is the inputs'.
 
-This module imports :mod:`albedo_model.camera`, :mod:`albedo_model.errors`,
-:mod:`albedo_model.model`, :mod:`albedo_model.params`, :mod:`albedo_model.render`
-(instances, normals, pixel_work) and :mod:`albedo_model.shading` (effects,
-image_formation, interpolation).
+This module imports :mod:`albedo_model` (camera, errors, model, params),
+:mod:`albedo_model.render` (instances, normals, pixel_work) and
+:mod:`albedo_model.shading` (effects, image_formation, interpolation).
 """
 
 from __future__ import annotations
@@ -50,19 +48,15 @@ from albedo_model.shading.interpolation import (
     PixelAlbedo, PixelGeometry, needs_specular_albedo, needs_view, normalise)
 
 __all__ = ["DifferentiableModel", "FixedHits", "GeometryParams", "PixelAttributes", "SceneInputs",
-           "build_value_and_grad", "euler_rotation_jax", "fixed_hits",
+           "barycentric_weights", "build_value_and_grad", "euler_rotation_jax", "fixed_hits",
            "geometry_params", "instance_and_normals", "pixel_attributes", "pixel_colours",
            "shade_attributes"]
 
 class GeometryParams(NamedTuple):
     """The continuous geometry parameters :func:`pixel_colours` is differentiated in (a pytree).
 
-    Attributes
-    ----------
-    shape, expression : (ks,), (ke,) model coefficients (standard-normal PCA units)
-    angles : (3,) yaw, pitch, roll (rad)
-    translation : (3,) pose translation t_x, t_y, t_z (mm)
-    focal_length : () camera focal length (sensor units)
+    ``shape``, ``expression`` (ks,), (ke,) coefficients; ``angles`` (3,) yaw, pitch,
+    roll (rad); ``translation`` (3,) (mm); ``focal_length`` () (sensor units).
     """
 
     shape: jax.Array
@@ -179,7 +173,7 @@ def _pixel_rays(geometry: GeometryParams, scene: SceneInputs, hits: FixedHits,
     return (n * a, n * b, n * minus), (a, b, minus)
 
 
-def _barycentrics(geometry: GeometryParams, scene: SceneInputs, hits: FixedHits, corners,
+def barycentric_weights(geometry: GeometryParams, scene: SceneInputs, hits: FixedHits, corners,
                   orthographic: bool):
     """Weights ``(1-u-v, u, v)`` of each pixel's ray on its triangle of corners (C, 3) x 3."""
     v0, v1, v2 = corners
@@ -244,7 +238,7 @@ def pixel_attributes(effects: Effects, orthographic: bool, vertices, normals, an
     corner = tuple(scene.triangles[:, j][hits.prim_id] for j in range(3))
     table = jnp.concatenate([vertices, jnp.stack(normals, axis=1)], axis=1)
     rows = tuple(table[c] for c in corner)
-    weight = _barycentrics(geometry, scene, hits, tuple(r[:, :3] for r in rows), orthographic)
+    weight = barycentric_weights(geometry, scene, hits, tuple(r[:, :3] for r in rows), orthographic)
     nm = _interp(rows, weight, 3)
     r = euler_rotation_jax(angles[2], angles[0], angles[1])
     normal = normalise(*(r[i, 0] * nm[0] + r[i, 1] * nm[1] + r[i, 2] * nm[2] for i in range(3)))
@@ -381,13 +375,19 @@ class DifferentiableModel:
                                  jnp.asarray(m.triangles, jnp.int32))
         return self._device[key]
 
-    def scene(self, params: RenderParameter, dtype=np.float32) -> SceneInputs:
-        """Return the :class:`SceneInputs` of ``params`` (computed in ``dtype``)."""
+    def scene(self, params: RenderParameter, dtype=np.float32, *,
+              albedo: bool = True) -> SceneInputs:
+        """Return the :class:`SceneInputs` of ``params`` (computed in ``dtype``).
+
+        ``albedo=False``: a zero placeholder albedo (for callers that form it).
+        """
         p = params
         mean, sb, eb, tri = self._bases(len(p.momo.shape), len(p.momo.expression), dtype)
         c, dt = np.asarray(p.momo.albedo, np.float64), np.dtype(dtype).name
         last = self._albedo  # the last albedo, kept while its coefficients are equal
-        if last is None or last[1] != dt or not np.array_equal(last[0], c):
+        if not albedo:
+            last = (None, dt, jnp.zeros((mean.shape[0], 6), dtype))
+        elif last is None or last[1] != dt or not np.array_equal(last[0], c):
             albedo = self._instances.albedo(p).astype(np.float64).reshape(-1, mean.shape[0], 3)
             albedo = np.concatenate([albedo, np.zeros_like(albedo)])[:2]
             self._albedo = last = (c.copy(), dt, jnp.asarray(np.concatenate(albedo, 1), dtype))

@@ -18,8 +18,8 @@ import numpy as np
 from albedo_model.params import RenderParameter
 from albedo_model.sh import MAX_SH_COEFFICIENTS
 
-__all__ = ["ShadingParams", "PACKED_SIZE", "pack_shading_params", "unpack_shading_params",
-           "shading_params"]
+__all__ = ["ShadingParams", "PACKED_SIZE", "pack_shading_params", "packed_slice",
+           "unpack_shading_params", "shading_params"]
 
 
 class ShadingParams(NamedTuple):
@@ -67,6 +67,11 @@ for _name in ShadingParams._fields:
 #: Length of a packed :class:`ShadingParams` vector.
 PACKED_SIZE = _start
 del _start, _name, _n
+
+
+def packed_slice(name: str) -> slice:
+    """Return the slice of field ``name`` (a :class:`ShadingParams` field) in a packed vector."""
+    return _SLICES[name]
 
 
 def pack_shading_params(

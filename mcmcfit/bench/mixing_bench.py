@@ -4,12 +4,14 @@ What a user gets from a sampler is effective samples of the quantities they
 read, per second of waiting. One run fits a synthetic case twice, both with
 the same chains, steps and posterior:
 
-* **default** -- the default schedule (exact albedo and SH-light conditionals
-  over all face pixels, step sizes adapted in warm-up, the noise model
-  measured per image); its measured noise model is then fixed for
+* **default** -- the default (Gaussian) sampler: the climb to the mode, the
+  pixel region and noise model measured there, moves from the posterior's
+  Laplace approximation and the exact albedo and SH-light conditionals,
+  step sizes adapted in warm-up; its measured noise model is then fixed for
 * **reference** -- the reference's random-walk schedule (Schönborn et al. 2017:
   the multi-scale walks of every block, all coefficients moved at once, the
-  SH solver, no conditionals, no adaptation) on the same posterior.
+  SH solver, no conditionals, no adaptation) on the same posterior (the same
+  preparation, ``sampler="reference"``), started at the mode.
 
 For each it reports, over the monitored quantities of
 :func:`mcmcfit.sampling.convergence.monitored_series` (log densities, moving
@@ -50,7 +52,7 @@ CASES = {"demo": {"seed": 0}, "yaw40-side-light": {"seed": 1, "yaw_deg": 40.0,
 
 def reference_config(base: FitConfig, noise: dict) -> FitConfig:
     """Return the reference's random-walk schedule on the posterior of ``noise`` (a measured noise model)."""
-    return base.replace(noise="fixed", sigma_px=float(noise["sigma"]),
+    return base.replace(sampler="reference", noise="fixed", sigma_px=float(noise["sigma"]),
                         temperature=max(1.0, float(noise["temperature"])), albedo_weight=0.0,
                         light_conditional_weight=0.0, adapt=False, block_size=None,
                         specular_weight=0.0, stage1_shape_weight=0.0,

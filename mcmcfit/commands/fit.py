@@ -27,8 +27,14 @@ def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "
                    help="most kept image-stage steps per chain; the fit stops earlier once "
                    f"the chains have converged (default {steps_default})")
     p.add_argument("--warmup-steps", type=int, metavar="N",
-                   help="image-stage warm-up steps per chain: step sizes adapted, noise "
-                   "model measured, never part of the posterior (default 30%% of --max-steps)")
+                   help="image-stage warm-up steps per chain: step sizes adapted, never part "
+                   "of the posterior (default 500 after the climb to the mode; 30%% of "
+                   "--max-steps with --sampler random-walk)")
+    p.add_argument("--sampler", choices=("gaussian", "random-walk"),
+                   help="image stage: climb to the mode, fixed interior pixel region, moves "
+                   "from the posterior's Laplace approximation and exact conditionals "
+                   "(gaussian, the default), or the previous random walks over the pixels the "
+                   "render covers (random-walk)")
     p.add_argument("--time-budget", type=float, metavar="SECONDS",
                    help="start no further round of kept draws after this many seconds "
                    "(the fit then says whether it converged)")
@@ -72,7 +78,8 @@ def config_from_args(args: argparse.Namespace, **defaults):
     options = (("steps", args.steps), ("landmark_steps", args.landmark_steps),
                ("chains", args.chains), ("warmup_steps", getattr(args, "warmup_steps", None)),
                ("time_budget", getattr(args, "time_budget", None)),
-               ("noise", getattr(args, "noise", None)))
+               ("noise", getattr(args, "noise", None)),
+               ("sampler", getattr(args, "sampler", None)))
     changes = {k: v for k, v in options if v is not None}
     if getattr(args, "serial", False):
         changes["parallel"] = False

@@ -15,8 +15,12 @@ landmark_stage_emcee
     The alternative emcee landmark stage.
 adaptation
     Warm-up adaptation of step sizes and the gradient moves' preconditioner.
+mode
+    The climb to the posterior mode (Levenberg-Marquardt) and the Laplace approximation.
+gaussian_stage
+    The Gaussian sampler's preparation of a chain: climb, region and noise, Laplace.
 chain_session
-    One chain run in phases: landmarks, warm-up, noise model, kept draws.
+    One chain run in phases: landmarks, preparation, warm-up, kept draws.
 chain_pool, chain_worker
     The chains in this process or in parallel worker processes.
 fit
@@ -28,7 +32,8 @@ progress
 cache_check
     ``--check-cache``: every cached product of a chain against a fresh computation.
 
-The package imports :mod:`albedo_model`, :mod:`proposals` (base, light_solver, schedule),
+The package imports :mod:`albedo_model`, :mod:`proposals` (base, light_solver, schedule,
+laplace),
 :mod:`mcmcfit.sampling`, :mod:`mcmcfit.targets` and :mod:`mcmcfit.proposal_data`.
 This file imports nothing.
 """

@@ -71,14 +71,16 @@ def family_counts(proposal: np.ndarray, accepted: np.ndarray, names: tuple[str, 
 
 
 def adapt_scales(scales: Mapping[str, float], counts: Mapping[str, tuple[int, int]], *,
-                 families: tuple[str, ...], target: float = TARGET_ACCEPTANCE) -> dict[str, float]:
+                 families: tuple[str, ...], target: float = TARGET_ACCEPTANCE,
+                 targets: Mapping[str, float] | None = None) -> dict[str, float]:
     """Return new step-size multipliers from one window's acceptance.
 
     ``log k += 2 (a - target)``, with ``a`` the family's acceptance rate in the
-    window; a family accepted below 5 % is divided by 3 outright (its steps
-    are far too large: in a sharp posterior the reference's scales can be 100x
-    too big). Families proposed fewer than 15 times keep their multiplier.
-    Multipliers stay in [1e-4, 4].
+    window and ``target`` the family's entry of ``targets`` if any; a family
+    accepted below 5 % is divided by 3 outright (its steps are far too large:
+    in a sharp posterior the reference's scales can be 100x too big).
+    Families proposed fewer than 15 times keep their multiplier. Multipliers
+    stay in [1e-4, 4].
     """
     out = {f: float(scales.get(f, 1.0)) for f in families}
     for fam in families:
@@ -86,8 +88,9 @@ def adapt_scales(scales: Mapping[str, float], counts: Mapping[str, tuple[int, in
         if proposed < MIN_PROPOSED:
             continue
         rate = acc / proposed
+        goal = (targets or {}).get(fam, target)
         k = out[fam]
-        k = k / 3.0 if rate < 0.05 else k * math.exp(2.0 * (rate - target))
+        k = k / 3.0 if rate < 0.05 else k * math.exp(2.0 * (rate - goal))
         out[fam] = float(min(_MAX_SCALE, max(_MIN_SCALE, k)))
     return out
 

@@ -41,7 +41,9 @@ from mcmcfit.fitting.adaptation import (
 from mcmcfit.targets.gradient import posterior_gradient
 from mcmcfit.fitting.cache_check import CacheCheck
 from mcmcfit.fitting.landmark_stage_emcee import run_emcee_stage
+from mcmcfit.fitting.gaussian_stage import GaussianPhases
 from mcmcfit.fitting.landmark_starts import DEFAULT_STARTS, landmark_stage
+from mcmcfit.fitting.mode import ModeResult
 from mcmcfit.targets.landmarks import LandmarkTarget
 from mcmcfit.fitting.problem import FitProblem, Posterior, build_posterior, provisional_noise
 from mcmcfit.proposal_data.albedo import RenderAlbedoData
@@ -50,11 +52,14 @@ from mcmcfit.proposal_data.light import RenderLightData
 from mcmcfit.proposal_data.light_system import RenderLightSystem
 from mcmcfit.sampling.chain import ChainRecord, ChainRecorder, ChainResult
 from mcmcfit.sampling.kernel import ChainState, init, run
+from mcmcfit.targets.curvature import SceneCaster
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.base import ProposalState
 from proposals.gradient import MALA, block_vector
 from proposals.light_conditional import LightConditional
 from proposals.light_solver import solve_sh_light
+from proposals.laplace.moves import GaussianApproximation
+from proposals.laplace.schedule import GAUSSIAN_TARGETS, gaussian_image_proposal
 from proposals.schedule import (
     CENTERING_LANDMARKS, FAMILIES, default_image_proposal, family_of, landmark_stage_proposal,
 )
@@ -76,7 +81,7 @@ def use_compilation_cache() -> None:
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
 
 
-class ChainSession:
+class ChainSession(GaussianPhases):
     """One chain: its targets, proposals, state and records.
 
     Parameters
@@ -106,6 +111,11 @@ class ChainSession:
         self.mala_step = float(self.cfg.mala_step)
         self.mala_diag = initial_diagonal(problem.start)
         self._gradient = None
+        self.region: np.ndarray | None = None
+        self.coords = None
+        self.approx: GaussianApproximation | None = None
+        self.mode: ModeResult | None = None
+        self._caster: SceneCaster | None = None
         self._build_data()
         self._build_proposal()
         self.stage1: ChainRecord | None = None
@@ -127,9 +137,10 @@ class ChainSession:
         cfg, post = self.cfg, self.posterior
         self.light_data = RenderLightData(post.renderer, post.image_target.linear,
                                           n_points=cfg.solver_points, seed=self._data_seeds[0])
-        self.light_system = RenderLightSystem(post.image_target.linear)
+        self.light_system = RenderLightSystem(post.image_target.linear, region=self.region)
         self.albedo_data = RenderAlbedoData(post.renderer, post.image_target.linear,
-                                            n_points=cfg.albedo_points, seed=self._data_seeds[1])
+                                            n_points=cfg.albedo_points, seed=self._data_seeds[1],
+                                            region=self.region)
 
     def _build_proposal(self) -> None:
         cfg, post = self.cfg, self.posterior
@@ -140,6 +151,15 @@ class ChainSession:
             mean, sd = post.face.prior.light_gaussian(k)
             light_conditional = LightConditional(self.light_system, mean, sd,
                                                  sigma=post.pixel_sigma)
+        if self.approx is not None:
+            self.proposal = gaussian_image_proposal(
+                self.coords, self.approx, scales=self.scales, albedo_data=self.albedo_data,
+                pixel_sigma=post.pixel_sigma, light_conditional=light_conditional,
+                pcn_weight=cfg.pcn_weight, block_weight=cfg.block_weight,
+                albedo_weight=0.5 * cfg.conditional_weight,
+                light_conditional_weight=0.5 * cfg.conditional_weight)
+            self.family = family_of(self.proposal)
+            return
         extra = []
         if cfg.mala_weight > 0:
             if self._gradient is None:
@@ -234,7 +254,8 @@ class ChainSession:
                 for fam, (n_prop, n_acc) in counts.items():
                     p0, a0 = self._pending.get(fam, (0, 0))
                     self._pending[fam] = (p0 + n_prop, a0 + n_acc)
-                new = adapt_scales(self.scales, self._pending, families=FAMILIES)
+                new = adapt_scales(self.scales, self._pending, families=FAMILIES,
+                                   targets=GAUSSIAN_TARGETS)
                 mala_step = adapt_step(self.mala_step, self._pending.get("mala", (0, 0)))
                 for fam in (*FAMILIES, "mala"):  # a family's counts restart once used
                     if self._pending.get(fam, (0, 0))[0] >= MIN_PROPOSED:

@@ -24,6 +24,19 @@ class FitConfig:
 
     Attributes
     ----------
+    sampler : {"gaussian", "reference", "random-walk"}
+        The image stage. ``"gaussian"`` (default): every chain climbs to the
+        posterior mode (Levenberg-Marquardt through the JAX pixel Jacobian,
+        :mod:`mcmcfit.fitting.mode`), the image likelihood is then fixed to the
+        interior pixels of the face there (:func:`albedo_model.render.region.interior_region`)
+        with its noise measured there, and the chains sample with moves from the
+        posterior's Laplace approximation (Crank-Nicolson on every coordinate
+        and on blocks, :mod:`proposals.laplace.moves`) and the albedo's and light's
+        exact conditionals. ``"reference"``: the same preparation and posterior,
+        sampled with the random-walk schedule (:func:`proposals.schedule.default_image_proposal`;
+        with the reference's settings in ``mcmcfit bench fit``). ``"random-walk"``:
+        the previous default, the random walks and conditionals on the likelihood
+        over the pixels the render covers, with a random-walk warm-up.
     steps : int
         Most kept image-stage steps per chain (``--max-steps``; reference: 10000
         image steps); the stage ends earlier when the chains have converged
@@ -40,15 +53,29 @@ class FitConfig:
         each; :mod:`mcmcfit.fitting.chain_pool`); False runs them one after the
         other in this process (the same chains, only slower).
     warmup_steps : int or None
-        Image-stage warm-up steps per chain (step sizes adapted, noise model
-        measured; never part of the posterior). None: 30 % of ``steps`` (3000
-        for the default 10000). With 0 the configured noise model is kept.
+        Image-stage warm-up steps per chain (step sizes adapted; never part of
+        the posterior). None: 500 for the Gaussian sampler (after its climb to
+        the mode), 30 % of ``steps`` for the random-walk one (which measures the
+        noise model in it; with 0 the configured noise model is kept).
     adapt_window : int
         Warm-up steps between two step-size adaptations.
     adapt : bool
         Adapt the step sizes during warm-up (False: the reference's fixed scales).
     check_every : int
         Kept steps per chain between two convergence checks.
+    mode_rounds : int
+        Gaussian sampler: climbs to the mode, each with the pixel region and the
+        noise model re-chosen at the point the last one reached.
+    mode_steps : int
+        Gaussian sampler: most Levenberg-Marquardt steps per climb.
+    region_erode, region_band : int
+        Gaussian sampler: pixels the region keeps away from the face's
+        silhouette and from occlusion contours.
+    pcn_weight, block_weight, conditional_weight : float
+        Gaussian sampler: top-level weights of the Crank-Nicolson moves of every
+        coordinate, of the Gaussian block moves (geometry, albedo, shading:
+        :data:`proposals.laplace.schedule.BLOCK_SHARES`) and of the albedo's and the
+        SH light's exact conditionals (half each).
     stop_when_converged : bool
         End the image stage at the first check where every monitored quantity
         has rank-normalised split R-hat < 1.01 and bulk- and tail-ESS >= 400.
@@ -66,7 +93,9 @@ class FitConfig:
         during warm-up (at equal intervals; each time at the best state since
         the last change, so that it follows the fit as it improves).
     thin : int
-        Keep every ``thin``-th state as a sample (per-step logs are kept in full).
+        Keep every ``thin``-th state as a sample (per-step logs are kept in
+        full). Default 1: the Gaussian sampler's steps are nearly independent,
+        and the ESS of a parameter cannot exceed its number of kept samples.
     sigma_px : float
         Per-channel colour noise of the pixel model, linear units (reference 0.043).
     sigma_lm : float
@@ -149,6 +178,7 @@ class FitConfig:
     prior : PriorConfig
     """
 
+    sampler: str = "gaussian"
     steps: int = 10000
     landmark_steps: int = 5000
     chains: int = 2
@@ -156,12 +186,19 @@ class FitConfig:
     warmup_steps: int | None = None
     adapt_window: int = 250
     adapt: bool = True
-    check_every: int = 1000
+    check_every: int = 500
+    mode_rounds: int = 3
+    mode_steps: int = 8
+    region_erode: int = 2
+    region_band: int = 2
+    pcn_weight: float = 0.4
+    block_weight: float = 0.5
+    conditional_weight: float = 0.1
     stop_when_converged: bool = True
     time_budget: float | None = None
     noise: str = "estimated"
     noise_updates: int = 3
-    thin: int = 10
+    thin: int = 1
     sigma_px: float = 0.043
     sigma_lm: float = 4.0
     lm_hidden_probability: float = 0.05
@@ -205,6 +242,8 @@ class FitConfig:
         for name in ("steps", "landmark_steps", "n_shape", "n_albedo", "n_expression"):
             count(name)
         count("noise_updates")
+        for name in ("mode_rounds", "mode_steps", "region_erode", "region_band"):
+            count(name)
         if self.warmup_steps is not None:
             count("warmup_steps")
         for name in ("chains", "thin", "bins", "solver_points", "albedo_points", "adapt_window",
@@ -217,14 +256,15 @@ class FitConfig:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise InputError(f"fit config: {name} must be > 0, got {v!r}")
         for name in ("stage1_shape_weight", "specular_weight", "albedo_weight",
-                     "light_conditional_weight", "mala_weight"):
+                     "light_conditional_weight", "mala_weight", "pcn_weight", "block_weight",
+                     "conditional_weight"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise InputError(f"fit config: {name} must be >= 0, got {v!r}")
         choices = {"likelihood": IMAGE_LIKELIHOODS, "stage1": ("mh", "emcee"),
                    "background": ("smoothed", "histogram"),
                    "init_pose": ("lsq", "similarity"), "init_light": ("solve", "frontal"),
-                   "noise": ("estimated", "fixed")}
+                   "noise": ("estimated", "fixed"), "sampler": ("gaussian", "reference", "random-walk")}
         for name, allowed in choices.items():
             if getattr(self, name) not in allowed:
                 raise InputError(f"fit config: {name} must be one of {allowed}, "
@@ -250,8 +290,12 @@ class FitConfig:
 
     @property
     def warmup(self) -> int:
-        """Warm-up steps per chain (``warmup_steps``, or 30 % of ``steps`` when None)."""
-        return (self.steps * 3) // 10 if self.warmup_steps is None else self.warmup_steps
+        """Warm-up steps per chain (``warmup_steps``; None: 500 Gaussian, 30 % of ``steps`` random walk)."""
+        if self.warmup_steps is not None:
+            return self.warmup_steps
+        if self.sampler != "random-walk":
+            return min(500, self.steps)
+        return (self.steps * 3) // 10
 
     def to_dict(self) -> dict:
         """Plain JSON-able dict (``prior`` nested)."""

@@ -182,17 +182,23 @@ def _drive(pool, cfg: FitConfig, layout: ParamLayout, t_start: float,
     pool.call("begin_image")
     warm = cfg.warmup
     total = warm + cfg.steps
-    phases = cfg.noise_updates + 1 if cfg.noise == "estimated" and warm > 0 else 1
-    done = 0
-    for phase in range(phases):
-        n = (warm * (phase + 1)) // phases - done
-        if n:
-            pool.call("warmup", n, window=cfg.adapt_window, adapt=cfg.adapt)
-            done += n
-            _report(progress, "image", k, done, total)
-        if phase < phases - 1:
-            noise = _pooled(pool.call("measure_noise"))
-            pool.call("set_noise", noise)
+    if cfg.sampler != "random-walk":
+        noise = _prepare_gaussian(pool, cfg, stopping)
+        if warm:
+            pool.call("warmup", warm, window=cfg.adapt_window, adapt=cfg.adapt)
+            _report(progress, "image", k, warm, total)
+    else:
+        phases = cfg.noise_updates + 1 if cfg.noise == "estimated" and warm > 0 else 1
+        done = 0
+        for phase in range(phases):
+            n = (warm * (phase + 1)) // phases - done
+            if n:
+                pool.call("warmup", n, window=cfg.adapt_window, adapt=cfg.adapt)
+                done += n
+                _report(progress, "image", k, done, total)
+            if phase < phases - 1:
+                noise = _pooled(pool.call("measure_noise"))
+                pool.call("set_noise", noise)
     kept = 0
     reason = "max steps"
     while kept < cfg.steps:
@@ -218,6 +224,38 @@ def _drive(pool, cfg: FitConfig, layout: ParamLayout, t_start: float,
     stopping.pop("kept_start", None)
     stopping.update(reason=reason, kept_steps=kept, warmup_steps=warm)
     return pool.call("finish"), noise, stopping
+
+
+#: Rounds of (region, noise model) measured at the best chain's mode, each followed by a climb.
+TARGET_ROUNDS = 2
+
+
+def _prepare_gaussian(pool, cfg: FitConfig, stopping: dict) -> NoiseModel:
+    """Climb every chain to the mode, fix the region and noise model, fit the Laplace approximations.
+
+    The region and the noise model are measured at the best chain's mode and
+    set on every chain (one posterior for all), twice: the second time at the
+    mode of the posterior the first one defined. Returns the noise model in use.
+    """
+    t0 = time.perf_counter()
+    climbs = pool.call("climb")
+    best = int(np.argmax([c["score"] for c in climbs]))
+    rounds = []
+    noise = None
+    for _ in range(TARGET_ROUNDS):
+        region, noise = pool.call("measure_target")[best]
+        best_params = pool.call("mode_params")[best]
+        dens = pool.call("set_region", region, noise, best_params)
+        rounds.append({"best_chain": best, "log_densities": [float(d) for d in dens],
+                       "region_pixels": int(np.count_nonzero(region)),
+                       "sigma": noise.sigma, "temperature": noise.temperature})
+        best = int(np.argmax(dens))
+    prepared = pool.call("prepare_gaussian")
+    stopping["mode"] = {"climb_scores": [c["score"] for c in climbs],
+                        "climb_traces": [c["trace"] for c in climbs], "rounds": rounds,
+                        "dimension": prepared[0]["dimension"],
+                        "seconds": time.perf_counter() - t0}
+    return noise
 
 
 def _pooled(noises: list[NoiseModel]) -> NoiseModel:

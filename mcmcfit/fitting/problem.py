@@ -112,7 +112,8 @@ class Posterior:
 
 def build_posterior(problem: FitProblem, noise: NoiseModel, *, threads: int | None = None,
                     renderer: Renderer | None = None,
-                    geometry: LandmarkGeometry | None = None) -> Posterior:
+                    geometry: LandmarkGeometry | None = None,
+                    region: np.ndarray | None = None) -> Posterior:
     """Build one chain's targets for ``noise`` (reusing ``renderer`` and ``geometry`` if given).
 
     Parameters
@@ -125,6 +126,10 @@ def build_posterior(problem: FitProblem, noise: NoiseModel, *, threads: int | No
         Ray-casting threads of a new renderer (default: the config's).
     renderer, geometry : optional
         Reused when the noise model changes during warm-up.
+    region : (H W,) bool, optional
+        A fixed pixel region: the image likelihood is then the Gaussian over
+        exactly these pixels (:class:`~mcmcfit.targets.image.ImageLikelihood`),
+        whatever ``config.likelihood`` says.
     """
     cfg = problem.config
     if renderer is None:
@@ -134,8 +139,10 @@ def build_posterior(problem: FitProblem, noise: NoiseModel, *, threads: int | No
         geometry = LandmarkGeometry(problem.model, threads=1)
     smooth = noise.sigma if cfg.background == "smoothed" else None
     target = prepare_image_target(problem.image, bins=cfg.bins, smooth_sigma=smooth)
-    lik = ImageLikelihood(target, kind=cfg.likelihood, sigma=noise.sigma,
-                          trim_fraction=cfg.trim_fraction, temperature=max(1.0, noise.temperature))
+    lik = ImageLikelihood(target, kind="independent" if region is not None else cfg.likelihood,
+                          sigma=noise.sigma, trim_fraction=cfg.trim_fraction,
+                          temperature=max(1.0, noise.temperature), region=region,
+                          background=renderer.background)
     factor = landmark_factor(problem, geometry)
     prior = LogPrior(cfg.prior)
     return Posterior(renderer, target, noise, FaceTarget(renderer, lik, factor, prior),

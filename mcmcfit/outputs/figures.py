@@ -3,7 +3,7 @@
 Figures are drawn with the Agg backend on figure objects (no pyplot state) and
 written as PNG. An uncertainty map (:func:`save_uncertainty_map`) shows the
 coefficient-only posterior std and, when the model has a residual variance,
-the posterior predictive std beside it on the same colour scale.
+the posterior predictive std beside it, each on its own colour scale.
 
 This module imports :mod:`mcmcfit.fitting.result` and :mod:`mcmcfit.outputs.vertex_maps`
 (and matplotlib).
@@ -31,8 +31,8 @@ def _figure(width: float, height: float):
 
 
 def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray, np.ndarray]], *,
-                    vmax: float, label: str, cmap: str = "viridis") -> None:
-    """Scalar pictures side by side on one colour scale, with a colour bar.
+                    vmax, label: str, cmap: str = "viridis") -> None:
+    """Scalar pictures side by side, on one colour scale or one each, with colour bars.
 
     Parameters
     ----------
@@ -40,11 +40,17 @@ def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray,
         PNG to write.
     panels : list of (title, image (H, W) float, mask (H, W) bool)
         Pixels outside the mask are drawn white.
-    vmax : float
-        Top of the colour scale (the bottom is 0).
+    vmax : float or sequence of float
+        Top of the colour scale (the bottom is 0): one for all panels (one
+        colour bar), or one per panel (a colour bar each; for quantities of
+        very different size, such as the coefficient-only and the predictive
+        std of a sharp posterior).
     label : str
         Colour-bar label (quantity and unit).
     """
+    if np.ndim(vmax):
+        _separate_scales(path, panels, [float(v) for v in vmax], label, cmap)
+        return
     n = len(panels)
     fig = _figure(3.0 * n + 1.3, 3.4)
     right = 3.0 * n / (3.0 * n + 1.3)
@@ -64,10 +70,25 @@ def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray,
     fig.savefig(path)
 
 
-def uncertainty_scale(part) -> float:
-    """Top of an uncertainty map's colour scale: the 99.5 % quantile of the largest std map."""
-    std = std_maps(part)[-1][1]
-    return float(np.quantile(std, 0.995)) if std.size else 1.0
+def _separate_scales(path, panels, vmax: list[float], label: str, cmap: str) -> None:
+    n = len(panels)
+    fig = _figure(4.0 * n, 3.4)
+    fig.subplots_adjust(left=0.02, right=0.9, top=0.88, bottom=0.03, wspace=0.35)
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    for ax, (title, img, mask), top in zip(axes, panels, vmax):
+        shown = np.ma.masked_array(np.asarray(img, np.float64), mask=~np.asarray(mask, bool))
+        im = ax.imshow(shown, cmap=cmap, vmin=0.0, vmax=max(top, 1e-12), interpolation="nearest")
+        ax.set_title(title, fontsize=9)
+        ax.set_axis_off()
+        cbar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02)
+        cbar.ax.tick_params(labelsize=7)
+    cbar.set_label(label, fontsize=8)
+    fig.savefig(path)
+
+
+def uncertainty_scale(part) -> list[float]:
+    """Tops of an uncertainty map's colour scales: the 99.5 % quantile of each std map."""
+    return [float(np.quantile(std, 0.995)) if std.size else 1.0 for _, std in std_maps(part)]
 
 
 def save_uncertainty_map(path: str | os.PathLike, state, part, *, name: str, view: str,
@@ -83,8 +104,10 @@ def save_uncertainty_map(path: str | os.PathLike, state, part, *, name: str, vie
     part : mcmcfit.outputs.posterior.AlbedoPosterior
     name, view : str
         ``"diffuse"`` / ``"specular"`` and ``"fitted"`` / ``"frontal"``, for the titles.
-    vmax : float, optional
-        Colour-scale top shared by the views (default :func:`uncertainty_scale`).
+    vmax : sequence of float, optional
+        Colour-scale tops, one per panel, shared by the views (default
+        :func:`uncertainty_scale`): the coefficient-only std of a sharp posterior
+        is many times smaller than the predictive one, so each has its own scale.
     """
     panels = []
     for label, std in std_maps(part):

@@ -58,13 +58,18 @@ class RenderAlbedoData:
         ``face pixels / n_points`` of them in the proposal's precision.
     seed : int
         Seeds the fixed pixel permutation.
+    region : (H W,) bool array, optional
+        Use only these pixels (the fixed region of a region likelihood,
+        :class:`mcmcfit.targets.image.ImageLikelihood`); default: every face pixel.
     """
 
     def __init__(self, renderer: Renderer, target_linear: np.ndarray, *,
-                 n_points: int = 4000, seed: int = 0):
+                 n_points: int = 4000, seed: int = 0, region: np.ndarray | None = None):
         self.renderer = renderer
         self._target = np.asarray(target_linear, np.float64).reshape(-1, 3)
         self._ok = unsaturated(self._target)
+        if region is not None:
+            self._ok &= np.asarray(region, bool).reshape(-1)
         perm = np.random.default_rng(seed).permutation(self._target.shape[0])
         self._rank = np.empty(perm.shape[0], np.int64)  # position of each pixel in perm
         self._rank[perm] = np.arange(perm.shape[0])

@@ -36,11 +36,15 @@ class RenderLightSystem:
     ----------
     target_linear : (H, W, 3) float array
         The linearised target image.
+    region : (H W,) bool array, optional
+        Use only these pixels (a region likelihood's); default: every face pixel.
     """
 
-    def __init__(self, target_linear: np.ndarray):
+    def __init__(self, target_linear: np.ndarray, *, region: np.ndarray | None = None):
         self._target = np.asarray(target_linear, np.float64).reshape(-1, 3)
         self._ok = unsaturated(self._target)
+        if region is not None:
+            self._ok &= np.asarray(region, bool).reshape(-1)
         self._system = Kept()
 
     def __call__(self, state: ProposalState) -> LightSystem | None:

@@ -19,8 +19,11 @@ face
     sampler's target.
 gradient
     The posterior's gradient in shape, expression, pose and camera (gradient moves).
+curvature
+    The posterior's gradient and Gauss-Newton precision in every continuous parameter
+    over a fixed pixel region (the climb to the mode, the Laplace approximation, HMC).
 
-The package imports :mod:`albedo_model` (camera, errors, model, params,
-render.differentiable, render.raycast, render.renderer, shading.image_formation) and
-:mod:`proposals.gradient`. This file imports nothing.
+The package imports :mod:`albedo_model` (camera, errors, model, params, scene_vector,
+render.differentiable, render.jacobian, render.pixel_cast, render.renderer,
+shading.image_formation) and :mod:`proposals.gradient`. This file imports nothing.
 """

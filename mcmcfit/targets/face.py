@@ -79,8 +79,9 @@ class FaceTarget:
         lik = self.image_likelihood
         if lik is None:
             return 0.0
+        prim = render_state.prim_id if lik.region is not None else None
         if self._fused is not None:
-            return lik.finish(*self._fused(render_state, *lik.device_args()))
+            return lik.finish(*self._fused(render_state, *lik.device_args()), prim_id=prim)
         return lik(self.renderer.shade(render_state))
 
     def accept(self, render_state: RenderState) -> RenderState:

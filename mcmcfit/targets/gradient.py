@@ -36,7 +36,7 @@ are read at every call. Cost at 250x250 on the default face model: about 20 ms
 (6 ms of it the ray cast), against 5-10 ms for a render step of the sampler.
 
 This module imports :mod:`albedo_model` (camera, errors, params, render.differentiable,
-render.raycast), :mod:`proposals.gradient`, and :mod:`mcmcfit.targets` (face,
+render.pixel_cast), :mod:`proposals.gradient`, and :mod:`mcmcfit.targets` (face,
 landmarks, likelihoods).
 """
 
@@ -50,7 +50,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from albedo_model.camera import camera_rays, eye_from_world, pixel_window, principal_point_px
+from albedo_model.camera import eye_from_world, principal_point_px
 from albedo_model.errors import InputError
 from albedo_model.params import Block, RenderParameter
 from albedo_model.render.differentiable import (
@@ -61,7 +61,7 @@ from albedo_model.render.differentiable import (
     fixed_hits,
     geometry_params,
 )
-from albedo_model.render.raycast import RayCaster
+from albedo_model.render.pixel_cast import SceneCaster
 from mcmcfit.targets.face import FaceTarget
 from mcmcfit.targets.landmarks import LandmarkTarget
 from mcmcfit.targets.likelihoods import (
@@ -205,30 +205,14 @@ class PosteriorGradient:
         self.model = r.model
         self._diff = DifferentiableModel(r.model, specular=r.specular, background=r.background,
                                          directional_specular_map=r.directional_specular_map)
-        self._threads = int(threads)
-        self._caster: RayCaster | None = None
-        self._rays: tuple[np.ndarray, np.ndarray] | None = None
+        self._caster = SceneCaster(r.model, threads=threads)
         self._capacity: dict[int, int] = {}
         self._landmark_inputs: dict = {}
 
     # -- the ray cast ----------------------------------------------------------
     def ray_cast(self, params: RenderParameter) -> np.ndarray:
         """Return the triangle per pixel (H W,) int32 (-1: miss) of a private cast at ``params``."""
-        p = params
-        v32 = np.ascontiguousarray(
-            self.model.shape_instance(p.momo.shape, p.momo.expression), np.float32)
-        if self._caster is None:
-            self._caster = RayCaster(v32, self.model.triangles, threads=self._threads)
-        else:
-            self._caster.update_vertices(v32)
-        w, h = int(p.image_size.width), int(p.image_size.height)
-        if self._rays is None or len(self._rays[0]) != w * h:
-            self._rays = (np.empty((w * h, 3), np.float32), np.empty((w * h, 3), np.float32))
-        camera_rays(p.camera, p.image_size, p.pose, p.view, out=self._rays)
-        window = pixel_window(self._caster.bounds, p.camera, p.image_size, p.pose, p.view)
-        hits = self._caster.cast(*self._rays, tfar=float(p.camera.far - p.camera.near),
-                                 image_shape=(h, w), window=window)
-        return np.asarray(hits.prim_id)
+        return self._caster.cast(params)[0]
 
     # -- factors -----------------------------------------------------------------
     def _image(self, params: RenderParameter,

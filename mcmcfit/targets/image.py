@@ -42,8 +42,10 @@ from mcmcfit.targets.likelihoods import (
     collective_terms,
     finish_collective,
     finish_independent,
+    finish_region,
     finish_trimmed,
     independent_terms,
+    region_terms,
     trimmed_terms,
 )
 
@@ -142,7 +144,7 @@ def prepare_image_target(image: np.ndarray, *, bins: int = 25,
 
 
 _DEVICE_FUNCTIONS = {"independent": independent_terms, "collective": collective_terms,
-                     "trimmed": trimmed_terms}
+                     "trimmed": trimmed_terms, "region": region_terms}
 
 
 def _on_pixel_set(terms):
@@ -186,6 +188,15 @@ class ImageLikelihood:
         The log likelihood is divided by it (1: the plain likelihood). Pixels
         are not independent (model errors are smooth over the face), so the
         plain product is overconfident; T > 1 counts about N / T effective pixels.
+    region : (H W,) bool array, optional
+        A fixed set of pixels (e.g. :func:`albedo_model.render.region.interior_region`
+        at a fit's mode). Then the likelihood is the Gaussian of ``sigma`` over
+        exactly these pixels, hit or not (a miss has the ``background``
+        colour), and no background density enters: a smooth function of the
+        scene, where the other kinds sum over the pixels the render covers and
+        jump whenever a silhouette pixel flips. ``kind`` must be "independent".
+    background : (3,) float
+        The renderer's colour of pixels without a hit (with ``region``).
     """
 
     target: ImageTarget
@@ -194,8 +205,11 @@ class ImageLikelihood:
     trim_fraction: float = 0.9
     relative_variance: float = 2.0 / 3.0
     temperature: float = 1.0
+    region: np.ndarray | None = None
+    background: tuple = (0.0, 0.0, 0.0)
     _fn: object = field(init=False, repr=False)
     _args: tuple = field(init=False, repr=False)
+    _region_constants: tuple = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         """Validate the settings and prepare the jitted terms and their device arguments."""
@@ -208,11 +222,38 @@ class ImageLikelihood:
             raise InputError(f"trim fraction must be in (0, 1], got {self.trim_fraction!r}")
         if not (math.isfinite(self.temperature) and self.temperature >= 1.0):
             raise InputError(f"likelihood temperature must be >= 1, got {self.temperature!r}")
-        object.__setattr__(self, "_fn", _jitted(self.kind))
+        object.__setattr__(self, "_fn", _jitted(self.device_kind))
         # one device scalar for every call (a fresh jnp.float32 per step is a host->device copy)
         args = (self.target.arrays,) if self.kind == "collective" else (
             self.target.arrays, jnp.float32(self.sigma))
+        constants = (0, np.zeros(0, np.int64), np.zeros(0))
+        if self.region is not None:
+            if self.kind != "independent":
+                raise InputError("a fixed pixel region needs the independent (Gaussian) "
+                                 f"likelihood, got {self.kind!r}")
+            h, w = self.target.height, self.target.width
+            region = np.asarray(self.region, bool).reshape(-1)
+            if region.shape[0] != h * w:
+                raise InputError(f"pixel region has {region.shape[0]} pixels, the image {h * w}")
+            lin = self.target.linear.reshape(-1, 3).astype(np.float32).astype(np.float64)
+            s32 = float(np.float32(self.sigma))
+            miss = -np.sum((lin - np.asarray(self.background, np.float64)) ** 2, axis=1) * (
+                0.5 / (s32 * s32))
+            args = args + (jnp.asarray(region.reshape(h, w)),)
+            index = np.flatnonzero(region)
+            constants = (int(index.size), index, miss[index])
         object.__setattr__(self, "_args", args)
+        object.__setattr__(self, "_region_constants", constants)
+
+    @property
+    def device_kind(self) -> str:
+        """The device terms evaluated: ``kind``, or ``"region"`` with a fixed region."""
+        return "region" if self.region is not None else self.kind
+
+    @property
+    def n_region(self) -> int:
+        """Pixels of the fixed region (0 without one)."""
+        return self._region_constants[0]
 
     @property
     def device_fn(self):
@@ -222,7 +263,7 @@ class ImageLikelihood:
         (:meth:`albedo_model.render.renderer.Renderer.compose`); :meth:`finish` turns its
         result into the log likelihood.
         """
-        return _DEVICE_FUNCTIONS[self.kind]
+        return _DEVICE_FUNCTIONS[self.device_kind]
 
     @property
     def pixel_set_fn(self):
@@ -231,7 +272,7 @@ class ImageLikelihood:
         For :meth:`albedo_model.render.renderer.Renderer.compose` with ``pixel_set=True``:
         the per-pixel work follows the face's size, not the image's.
         """
-        return _PIXEL_SET_FUNCTIONS[self.kind]
+        return _PIXEL_SET_FUNCTIONS[self.device_kind]
 
     def device_args(self) -> tuple:
         """Return the arguments after ``(rgb, mask)`` of :attr:`device_fn`."""
@@ -241,10 +282,20 @@ class ImageLikelihood:
         """Device partial results for the shader output (see :mod:`mcmcfit.targets.likelihoods`)."""
         return self._fn(rgb, mask, *self.device_args())
 
-    def finish(self, rows, counts) -> float:
-        """Host float64 value from the device results (partial sums, or values and mask)."""
+    def finish(self, rows, counts, prim_id=None) -> float:
+        """Host float64 value from the device results (partial sums, or values and mask).
+
+        With a fixed region, ``prim_id`` (the ray cast's (H W,) triangle ids) tells
+        which region pixels the render missed; their constant terms are added here.
+        """
         rows, counts = np.asarray(rows), np.asarray(counts)
-        if self.kind == "independent":
+        if self.region is not None:
+            if prim_id is None:
+                raise InputError("a region likelihood needs the ray cast's triangle ids")
+            n_region, index, miss = self._region_constants
+            missed = np.asarray(prim_id)[index] < 0
+            value = finish_region(rows, n_region, float(np.sum(miss[missed])), self.sigma)
+        elif self.kind == "independent":
             value = finish_independent(rows, counts, self.sigma)
         elif self.kind == "collective":
             value = finish_collective(rows, counts, math.sqrt(3.0) * self.sigma,
@@ -255,4 +306,5 @@ class ImageLikelihood:
 
     def __call__(self, shaded: Shaded) -> float:
         """Log likelihood of the target given a render (linear colours, full-image arrays)."""
-        return self.finish(*self.terms(shaded.rgb, shaded.mask))
+        prim = None if self.region is None else np.where(np.asarray(shaded.mask), 0, -1)
+        return self.finish(*self.terms(shaded.rgb, shaded.mask), prim_id=prim)

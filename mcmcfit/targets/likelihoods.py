@@ -39,11 +39,13 @@ __all__ = [
     "face_box_log_lik",
     "finish_collective",
     "finish_independent",
+    "finish_region",
     "finish_trimmed",
     "independent_terms",
     "landmark_log_lik",
     "landmark_log_normaliser",
     "pixel_log_normaliser",
+    "region_terms",
     "trimmed_terms",
 ]
 
@@ -119,6 +121,43 @@ def independent_terms(rgb, mask, target: ImageArrays, sigma, pixels=None):
     val = -_sq_dist(rgb, target, pixels) * (0.5 / (sigma * sigma)) - _at(target.bg, pixels)
     return (jnp.sum(jnp.where(m, val.reshape(-1, w), 0.0), axis=1),
             jnp.sum(m, axis=1, dtype=jnp.int32))
+
+
+def region_terms(rgb, mask, target: ImageArrays, sigma, region, pixels=None):
+    """Row partial sums of the Gaussian likelihood over the hits of a fixed pixel region.
+
+    Every region pixel counts, hit or not; a miss has the renderer's background
+    colour, a constant, so its term is added on the host
+    (:func:`finish_region`, from the ray cast). No background density enters.
+
+    Parameters
+    ----------
+    rgb, mask, target, sigma, pixels
+        As :func:`independent_terms`.
+    region : (H, W) bool
+        The fixed pixels.
+
+    Returns
+    -------
+    rows : (P / W,) float32
+        ``sum_{region, hit} -||I - R||^2 / (2 sigma^2)`` per W consecutive pixels.
+    counts : (P / W,) int32
+        Region hits among them.
+    """
+    w = target.bg.shape[1]
+    r = (_at(region, pixels) & mask).reshape(-1, w)
+    val = -_sq_dist(rgb, target, pixels) * (0.5 / (sigma * sigma))
+    return (jnp.sum(jnp.where(r, val.reshape(-1, w), 0.0), axis=1),
+            jnp.sum(r, axis=1, dtype=jnp.int32))
+
+
+def finish_region(rows, n_region: int, miss_total: float, sigma: float) -> float:
+    """``sum_region -||I - R||^2 / (2 sigma^2)`` plus the Gaussian normaliser, in float64.
+
+    ``miss_total`` is the sum of the region's missed pixels' terms at the background colour.
+    """
+    return float(n_region * pixel_log_normaliser(sigma) + miss_total
+                 + np.sum(np.asarray(rows, np.float64)))
 
 
 def finish_independent(rows, counts, sigma: float) -> float:

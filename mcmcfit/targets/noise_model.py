@@ -66,9 +66,11 @@ class NoiseModel(NamedTuple):
 
     def to_dict(self) -> dict:
         """Plain JSON-able dict, with the rule in words (``summary.json``)."""
-        rule = ("sigma = RMS residual over face pixels at the end of the provisional warm-up; "
-                "temperature = correlation area of the residuals (pixels per independent "
-                "residual); held fixed for the kept draws" if self.source == "estimated" else
+        rule = ("sigma = RMS residual over the likelihood's pixels (the Gaussian sampler: the "
+                "fixed interior region at the best chain's mode; the random-walk sampler: the "
+                "face pixels at the end of the provisional warm-up); temperature = correlation "
+                "area of the residuals (pixels per independent residual); held fixed for the "
+                "kept draws" if self.source == "estimated" else
                 "sigma and temperature given by the configuration")
         out = self._asdict()
         out["rule"] = rule

@@ -16,10 +16,12 @@ from mcmcfit.sampling.kernel import ACCEPTED, REJECTION_STAGES
 
 pytestmark = pytest.mark.embree
 
-# one chain in this process: the tests below patch the cache table of this process
-CONFIG = FitConfig(steps=400, warmup_steps=0, landmark_steps=100, thin=5, sigma_lm=2.0,
-                   check_cache=True,
-                   chains=1, parallel=False, mala_weight=0.5)
+# one chain in this process: the tests below patch the cache table of this process. The
+# random-walk schedule: every move kind touches a few blocks, so each table entry is
+# exercised alone (the Gaussian sampler's moves touch every block at once).
+CONFIG = FitConfig(sampler="random-walk", steps=400, warmup_steps=0, landmark_steps=100,
+                   thin=5, sigma_lm=2.0, check_cache=True, chains=1, parallel=False,
+                   mala_weight=0.5)
 
 
 @pytest.fixture(scope="module")
@@ -53,6 +55,19 @@ def test_check_cache_passes_over_every_move_kind(case):
     plain = fit(image, clicks, model, config=CONFIG.replace(check_cache=False), seed=11)
     np.testing.assert_array_equal(plain.records(2)[0].log_lik_img, rec.log_lik_img)
     assert len(REJECTION_STAGES) == 6
+
+
+def test_check_cache_passes_over_the_gaussian_sampler(case):
+    model, image, clicks = case
+    cfg = FitConfig(steps=120, warmup_steps=40, landmark_steps=100, sigma_lm=2.0,
+                    check_cache=True, chains=1, parallel=False, mode_rounds=1, mode_steps=3)
+    res = fit(image, clicks, model, config=cfg, seed=11)
+    kinds = set(res.acceptance)
+    for kind in ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
+                 "albedo-conditional",
+                 "light-conditional"):
+        assert any(k.startswith(kind) for k in kinds), (kind, sorted(kinds))
+    assert sum(s.accepted for s in res.acceptance.values()) > 0
 
 
 _PREFIX_BLOCKS = (

@@ -1,0 +1,243 @@
+"""The Gaussian sampler's preparation: climb to the mode, fix the region and noise, Laplace.
+
+:class:`GaussianPhases` holds the phases a chain runs before the Gaussian
+sampler's warm-up (:class:`~mcmcfit.fitting.chain_session.ChainSession` has
+them; the driver, :mod:`mcmcfit.fitting.fit`, calls them in lockstep):
+
+1. :meth:`~GaussianPhases.climb` -- Levenberg-Marquardt to the mode
+   (:mod:`mcmcfit.fitting.mode`) from the landmark fit, with the pixel region
+   and the noise model re-chosen where each climb ends;
+2. :meth:`~GaussianPhases.measure_target` / :meth:`~GaussianPhases.set_region` --
+   the driver takes the region and noise model of the best chain's mode and
+   sets them on every chain (one posterior for all), which climb again;
+3. :meth:`~GaussianPhases.prepare_gaussian` -- the Laplace approximation at
+   the mode, the moves built on it, the chain started from a draw of it.
+
+Helpers:
+
+* :func:`recentred` moves the principal point of a landmark fit to the image
+  centre and compensates with the translation (the landmark stage's
+  image-centred moves shift the principal point; the Gaussian moves hold it,
+  :data:`proposals.laplace.coordinates.HELD`).
+* :func:`sampling_coordinates` are the Gaussian moves' coordinates of a fit.
+* :func:`region_and_noise` measures the likelihood's scale over a pixel region
+  at some parameters (:func:`mcmcfit.targets.noise_model.estimate_noise` on the
+  region's residuals).
+
+This module imports :mod:`albedo_model` (camera, params, scene_vector, render),
+:mod:`mcmcfit.fitting` (mode, problem), :mod:`mcmcfit.proposal_data.face_pixels`,
+:mod:`mcmcfit.sampling.kernel`, :mod:`mcmcfit.targets` (curvature, noise_model) and
+:mod:`proposals.laplace.coordinates`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from albedo_model.camera import pixel_scale, to_eye
+from albedo_model.params import RenderParameter
+from albedo_model.render.renderer import Renderer
+from albedo_model.scene_vector import SceneLayout
+from mcmcfit.fitting.mode import ModeResult, find_mode, laplace, region_of
+from mcmcfit.fitting.problem import build_posterior, provisional_noise
+from mcmcfit.proposal_data.face_pixels import unsaturated
+from mcmcfit.sampling.kernel import init
+from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster
+from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
+from proposals.laplace.coordinates import SamplingCoordinates
+
+__all__ = ["ADOPT_GAP", "GaussianPhases", "recentred", "region_and_noise",
+           "sampling_coordinates"]
+
+#: Log-density gap (nats) beyond which a chain climbs from the best chain's mode instead of
+#: its own: a local mode that much lower (at similar curvature) holds under e^-10 of the
+#: mass, nothing a posterior summary would notice, and a chain started there spends the
+#: fit finding its way out.
+ADOPT_GAP = 10.0
+
+#: Levenberg-Marquardt steps over every region pixel that end each climb under the final
+#: posterior (the subset steps before them are noisy near the mode).
+POLISH_STEPS = 3
+
+
+def recentred(params: RenderParameter) -> RenderParameter:
+    """Return ``params`` with the principal point at the image centre, the face kept in place.
+
+    The pose translation moves by the shift a principal point offset causes at
+    the depth of the model's origin (exact there; elsewhere on the face the
+    difference is a perspective effect well below a pixel for faces at
+    portrait distances, which the climb to the mode absorbs).
+    """
+    pp_x, pp_y = params.camera.principal_point
+    if pp_x == 0.0 and pp_y == 0.0:
+        return params
+    w, h = float(params.image_size.width), float(params.image_size.height)
+    fx, fy = pixel_scale(params.camera, params.image_size)
+    depth = float(-to_eye(np.zeros((1, 3)), params.pose, params.view)[0, 2])
+    dx = 0.5 * w * pp_x * depth / fx
+    dy = 0.5 * h * pp_y * depth / fy
+    tx, ty, tz = params.pose.translation
+    return params._replace(pose=params.pose._replace(translation=(tx + dx, ty + dy, tz)),
+                           camera=params.camera._replace(principal_point=(0.0, 0.0)))
+
+
+def sampling_coordinates(params: RenderParameter) -> SamplingCoordinates:
+    """Return the Gaussian moves' coordinates for a fit whose parameters look like ``params``."""
+    return SamplingCoordinates(SceneLayout.for_params(params), params)
+
+
+def region_and_noise(renderer: Renderer, target_linear: np.ndarray, params: RenderParameter,
+                     region: np.ndarray) -> NoiseModel:
+    """Return the noise model measured over ``region`` (H W,) on the render of ``params``.
+
+    ``sigma`` is the RMS residual over the region's pixels and channels, the
+    temperature their residuals' correlation area (pixels per independent
+    residual); ``n_face`` counts the region's pixels.
+    """
+    rendered = renderer.render(params)
+    h, w = target_linear.shape[:2]
+    mask = np.asarray(region, bool).reshape(h, w)
+    return estimate_noise(np.asarray(target_linear), rendered.image, mask)
+
+
+class GaussianPhases:
+    """The Gaussian sampler's phases of a chain (a mixin of :class:`~mcmcfit.fitting.chain_session.ChainSession`).
+
+    Reads the session's ``problem``, ``cfg``, ``rng``, ``posterior`` and
+    ``state``, and sets ``coords``, ``mode``, ``region``, ``approx`` (and
+    ``posterior``, ``state``); ``_build_data`` and ``_build_proposal`` are the
+    session's.
+    """
+
+    def _scene_caster(self) -> SceneCaster:
+        if self._caster is None:
+            self._caster = SceneCaster(self.problem.model)
+        return self._caster
+
+    def _usable(self) -> np.ndarray:
+        return unsaturated(self.posterior.image_target.linear.reshape(-1, 3))
+
+    def _region_posterior(self, region: np.ndarray, noise: NoiseModel):
+        return build_posterior(self.problem, noise, renderer=self.posterior.renderer,
+                               geometry=self.posterior.geometry, region=region)
+
+    def _climb(self, post, params: RenderParameter, steps: int, *,
+               polish: int = 0) -> ModeResult:
+        curvature = PosteriorCurvature(post.face, self.coords.layout,
+                                       caster=self._scene_caster())
+        res = find_mode(post.face, curvature, self.coords, params, rng=self.rng,
+                        max_steps=steps)
+        if polish:
+            more = find_mode(post.face, curvature, self.coords, res.params, rng=self.rng,
+                             max_steps=polish, step_pixels=np.iinfo(np.int64).max)
+            res = more._replace(iterations=res.iterations + more.iterations,
+                                trace=res.trace + more.trace[1:])
+        return res
+
+    def climb(self) -> dict:
+        """Climb from the image stage's start to the posterior mode (the Gaussian sampler's first phase).
+
+        ``mode_rounds`` climbs of at most ``mode_steps`` Levenberg-Marquardt
+        steps, each under the interior region of the render where the last one
+        ended and (after the first, under the provisional scale) the noise
+        model measured there. The chain's own state is not changed.
+
+        Returns
+        -------
+        dict
+            ``score``: the mode's log posterior under the likelihood over the
+            render's pixels at the provisional scale (the same function for
+            every chain, so the driver can pick the best mode); ``trace``: the
+            log densities of the climbs.
+        """
+        cfg = self.cfg
+        start = recentred(self.state.params)
+        self.coords = sampling_coordinates(start)
+        params, noise, traces = start, provisional_noise(cfg), []
+        for _ in range(max(1, cfg.mode_rounds)):
+            region = self._region(params)
+            res = self._climb(self._region_posterior(region, noise), params, cfg.mode_steps)
+            params = res.params
+            traces.append(list(res.trace))
+            if cfg.noise == "estimated":
+                region, noise = self._measure(params)
+        self.mode = res._replace(params=params)
+        score = init(params, self.posterior.face, image=True).log_posterior
+        self.state = init(self.state.params, self.posterior.face, image=True)
+        return {"score": float(score), "trace": traces}
+
+    def _region(self, params: RenderParameter) -> np.ndarray:
+        return region_of(self._scene_caster(), params, self._usable(),
+                         erode=self.cfg.region_erode, contour_band=self.cfg.region_band)
+
+    def _measure(self, params: RenderParameter) -> tuple[np.ndarray, NoiseModel]:
+        region = self._region(params)
+        if self.cfg.noise != "estimated":
+            return region, provisional_noise(self.cfg)
+        return region, region_and_noise(self.posterior.renderer,
+                                        self.posterior.image_target.linear, params, region)
+
+    def mode_params(self) -> RenderParameter:
+        """Return the mode the last climb reached."""
+        return self.mode.params
+
+    def measure_target(self) -> tuple[np.ndarray, NoiseModel]:
+        """Return the region and the noise model measured at this chain's mode.
+
+        With ``noise="fixed"`` the noise model is the configured one.
+        """
+        return self._measure(self.mode.params)
+
+    def set_region(self, region: np.ndarray, noise: NoiseModel,
+                   best: RenderParameter | None = None) -> float:
+        """Target the posterior over the fixed ``region`` at ``noise``, and climb to its mode.
+
+        The climb starts from this chain's mode, or from ``best`` (another
+        chain's) when that is higher under the new posterior by more than
+        :data:`ADOPT_GAP` (a chain stuck on a far lower local mode holds
+        no posterior mass worth exploring).
+
+        Returns
+        -------
+        float
+            The log density at the mode reached.
+        """
+        self.region = np.asarray(region, bool)
+        self.posterior = self._region_posterior(self.region, noise)
+        self._build_data()
+        start = self.mode.params
+        if best is not None:
+            face = self.posterior.face
+            own = init(start, face, image=True).log_posterior
+            other = init(best, face, image=True).log_posterior
+            if other > own + ADOPT_GAP:
+                start = best
+        self.mode = self._climb(self.posterior, start, self.cfg.mode_steps,
+                                polish=POLISH_STEPS)
+        self.state = init(self.mode.params, self.posterior.face, image=True)
+        return float(self.mode.log_density)
+
+    def prepare_gaussian(self) -> dict:
+        """Fit the Laplace approximation at the mode, build the moves, start from a draw of it.
+
+        With ``sampler="reference"`` the random-walk schedule starts from the mode instead.
+
+        Returns
+        -------
+        dict
+            ``log_density`` of the start; ``dimension`` of the coordinates.
+        """
+        if self.cfg.sampler == "reference":  # the random walks from the mode, no approximation
+            self._build_proposal()
+            self.state = init(self.mode.params, self.posterior.face, image=True)
+            return {"log_density": float(self.state.log_posterior),
+                    "dimension": self.coords.size}
+        curvature = PosteriorCurvature(self.posterior.face, self.coords.layout,
+                                       caster=self._scene_caster())
+        self.approx = laplace(curvature, self.coords, self.mode.params)
+        self._build_proposal()
+        start = self.coords.params_of(self.approx.draw(self.rng), self.mode.params)
+        self.state = init(start, self.posterior.face, image=True)
+        if not np.isfinite(self.state.log_posterior):
+            self.state = init(self.mode.params, self.posterior.face, image=True)
+        return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size}

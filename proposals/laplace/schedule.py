@@ -1,0 +1,108 @@
+"""The Gaussian sampler's image-stage schedule: Crank-Nicolson, Gaussian blocks, exact conditionals.
+
+:func:`gaussian_image_proposal` mixes the moves of :mod:`proposals.laplace.moves`
+built on a fit's Laplace approximation with the albedo's and the SH light's
+exact conditionals. Each Gaussian family has a step ``sqrt(1 - rho^2)``
+(:data:`GAUSSIAN_STEPS`) that the warm-up multiplies towards an acceptance rate
+(:data:`GAUSSIAN_TARGETS`); :func:`rho_of` turns a multiplier into ``rho``.
+
+This module imports :mod:`proposals` (albedo_solver, base, light_conditional,
+schedule) and :mod:`proposals.laplace` (coordinates, moves).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from proposals.albedo_solver import AlbedoConditional, AlbedoData
+from proposals.base import Mixture, mixture
+from proposals.laplace.coordinates import SamplingCoordinates
+from proposals.laplace.moves import CrankNicolson, GaussianApproximation, GaussianBlockConditional
+from proposals.light_conditional import LightConditional
+from proposals.schedule import Scales
+
+__all__ = ["BLOCK_SHARES", "GAUSSIAN_BLOCKS", "GAUSSIAN_FAMILIES", "GAUSSIAN_STEPS", "GAUSSIAN_TARGETS",
+           "gaussian_image_proposal", "rho_of"]
+
+#: The Gaussian moves' families (warm-up adapts one step multiplier each).
+GAUSSIAN_FAMILIES = ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading")
+
+#: Initial Crank-Nicolson step ``sqrt(1 - rho^2)`` of the Gaussian moves' families (the
+#: warm-up multiplies it by the family's multiplier, at most to 1: an independent draw).
+GAUSSIAN_STEPS = {"pcn": 0.85, "gaussian-geometry": 0.8, "gaussian-albedo": 1.0,
+                  "gaussian-shading": 0.8}
+
+#: Acceptance rates the warm-up tunes the Gaussian families' steps to (measured on the demo
+#: face: the Crank-Nicolson move's effective samples per step peak near 0.2 acceptance).
+GAUSSIAN_TARGETS = {"pcn": 0.2, "gaussian-geometry": 0.3, "gaussian-albedo": 0.3,
+                    "gaussian-shading": 0.3}
+
+#: Shares of the block moves' top-level weight. The albedo and shading blocks cost a
+#: re-shading (1-2 ms) where a geometry move re-casts the rays (~14 ms at 250^2).
+BLOCK_SHARES = {"gaussian-geometry": 0.6, "gaussian-albedo": 0.2, "gaussian-shading": 0.2}
+
+#: The coordinates of the Gaussian moves' blocks (by name prefix, :mod:`proposals.laplace.coordinates`).
+GAUSSIAN_BLOCKS = {
+    "gaussian-geometry": ("shape", "expression", "angles", "translation", "log_distance",
+                          "log_focal_length", "principal_point"),
+    "gaussian-albedo": ("albedo",),
+    "gaussian-shading": ("light", "gain", "contrast", "offset", "log_specular_exponent"),
+}
+
+
+def rho_of(family: str, scales: Scales | None) -> float:
+    """Return the Crank-Nicolson ``rho`` of a Gaussian family at its step multiplier."""
+    step = min(1.0, GAUSSIAN_STEPS[family] * float((scales or {}).get(family, 1.0)))
+    return math.sqrt(max(0.0, 1.0 - step * step))
+
+
+def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproximation, *,
+                            scales: Scales | None = None,
+                            albedo_data: AlbedoData | None = None, pixel_sigma: float = 0.043,
+                            light_conditional: LightConditional | None = None,
+                            pcn_weight: float = 0.3, block_weight: float = 0.4,
+                            albedo_weight: float = 0.2,
+                            light_conditional_weight: float = 0.1) -> Mixture:
+    """Build the image-stage proposal of the Gaussian sampler (the default).
+
+    Parameters
+    ----------
+    coords : SamplingCoordinates
+    approx : GaussianApproximation
+        The posterior's Laplace approximation in ``coords`` (:mod:`mcmcfit.fitting.mode`).
+    scales : Scales, optional
+        Step multipliers of the families :data:`GAUSSIAN_FAMILIES` (:func:`rho_of`;
+        set by the warm-up).
+    albedo_data : callable, optional
+        Data of the albedo's exact conditional (:class:`~proposals.albedo_solver.AlbedoConditional`).
+    pixel_sigma : float
+        The likelihood's effective pixel sd (for the albedo conditional).
+    light_conditional : LightConditional, optional
+        The SH light's exact conditional.
+    pcn_weight, block_weight, albedo_weight, light_conditional_weight : float
+        Top-level weights: Crank-Nicolson moves of every coordinate; block
+        moves from the approximation's conditionals (shared as :data:`BLOCK_SHARES`);
+        the albedo's and the light's exact conditionals (each rebuilds its linear
+        system over the region after a geometry move: 15-30 ms at 250^2).
+
+    Returns
+    -------
+    Mixture
+    """
+    k = dict(scales or {})
+    names = np.array(coords.names)
+    parts = [(pcn_weight, mixture((1.0, CrankNicolson(coords, approx, rho_of("pcn", k),
+                                                      name="pcn")), name="pcn"))]
+    for family, share in BLOCK_SHARES.items():
+        mask = np.array([n.startswith(GAUSSIAN_BLOCKS[family]) for n in names])
+        if mask.any() and block_weight > 0:
+            move = GaussianBlockConditional(coords, approx, mask, name=family,
+                                            rho=rho_of(family, k))
+            parts.append((share * block_weight, mixture((1.0, move), name=family)))
+    if albedo_data is not None and albedo_weight > 0:
+        parts.append((albedo_weight, AlbedoConditional(albedo_data, sigma=pixel_sigma)))
+    if light_conditional is not None and light_conditional_weight > 0:
+        parts.append((light_conditional_weight, light_conditional))
+    return mixture(*parts, name="image")
