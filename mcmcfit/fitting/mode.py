@@ -28,7 +28,7 @@ import numpy as np
 
 from albedo_model.params import RenderParameter
 from albedo_model.camera import pixel_scale
-from albedo_model.render.region import contour_jump, interior_region
+from albedo_model.render.region import contour_jump, fold_contours, interior_region
 from mcmcfit.sampling.kernel import init
 from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster
 from mcmcfit.targets.face import FaceTarget
@@ -63,11 +63,19 @@ class ModeResult(NamedTuple):
 
 def region_of(caster: SceneCaster, params: RenderParameter, usable: np.ndarray | None = None,
               **kwargs) -> np.ndarray:
-    """Return the interior region (H W,) bool of the render of ``params`` (see :mod:`albedo_model.render.region`)."""
+    """Return the interior region (H W,) bool of the render of ``params`` (see :mod:`albedo_model.render.region`).
+
+    Pixels near the silhouette, near depth jumps and near the mesh's visible
+    fold edges are left out.
+    """
     prim, t = caster.cast(params)
     w, h = int(params.image_size.width), int(params.image_size.height)
-    kwargs.setdefault("jump", contour_jump(min(pixel_scale(params.camera, params.image_size))))
-    return interior_region(prim, t, w, h, usable=usable, **kwargs)
+    model = caster.model
+    vertices = model.shape_instance(params.momo.shape, params.momo.expression)
+    jump = contour_jump(min(pixel_scale(params.camera, params.image_size)))
+    kwargs.setdefault("jump", jump)
+    folds = fold_contours(params, vertices, model.triangles, t, tolerance=kwargs["jump"])
+    return interior_region(prim, t, w, h, usable=usable, folds=folds, **kwargs)
 
 
 def _exact(target: FaceTarget, coords: SamplingCoordinates, params: RenderParameter,
