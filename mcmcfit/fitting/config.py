@@ -67,7 +67,9 @@ class FitConfig:
         Gaussian sampler: climbs to the mode, each with the pixel region and the
         noise model re-chosen at the point the last one reached.
     mode_steps : int
-        Gaussian sampler: most Levenberg-Marquardt steps per climb.
+        Gaussian sampler: most Levenberg-Marquardt steps per climb (a climb
+        ends sooner once a step gains less than 0.1 in log density; a landmark
+        fit far from the mode can need 20 or more).
     region_erode, region_band : int
         Gaussian sampler: pixels the region keeps away from the face's
         silhouette and from occlusion contours.
@@ -188,7 +190,7 @@ class FitConfig:
     adapt: bool = True
     check_every: int = 500
     mode_rounds: int = 3
-    mode_steps: int = 8
+    mode_steps: int = 30
     region_erode: int = 2
     region_band: int = 2
     pcn_weight: float = 0.4

@@ -5,8 +5,9 @@ sampler's warm-up (:class:`~mcmcfit.fitting.chain_session.ChainSession` has
 them; the driver, :mod:`mcmcfit.fitting.fit`, calls them in lockstep):
 
 1. :meth:`~GaussianPhases.climb` -- Levenberg-Marquardt to the mode
-   (:mod:`mcmcfit.fitting.mode`) from the landmark fit, with the pixel region
-   and the noise model re-chosen where each climb ends;
+   (:mod:`mcmcfit.fitting.mode`) from the landmark fit: first the appearance
+   alone (:func:`appearance_coordinates`, the geometry held), then everything,
+   with the pixel region and the noise model re-chosen where each climb ends;
 2. :meth:`~GaussianPhases.measure_target` / :meth:`~GaussianPhases.set_region` --
    the driver takes the region and noise model of the best chain's mode and
    sets them on every chain (one posterior for all), which climb again;
@@ -27,7 +28,7 @@ Helpers:
 This module imports :mod:`albedo_model` (camera, params, scene_vector, render),
 :mod:`mcmcfit.fitting` (mode, problem), :mod:`mcmcfit.proposal_data.face_pixels`,
 :mod:`mcmcfit.sampling.kernel`, :mod:`mcmcfit.targets` (curvature, noise_model) and
-:mod:`proposals.laplace.coordinates`.
+:mod:`proposals.laplace` (coordinates, schedule).
 """
 
 from __future__ import annotations
@@ -45,15 +46,20 @@ from mcmcfit.sampling.kernel import init
 from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.laplace.coordinates import SamplingCoordinates
+from proposals.laplace.schedule import GAUSSIAN_BLOCKS
 
-__all__ = ["ADOPT_GAP", "GaussianPhases", "recentred", "region_and_noise",
-           "sampling_coordinates"]
+__all__ = ["ADOPT_GAP", "START_ERODE", "GaussianPhases", "appearance_coordinates", "recentred",
+           "region_and_noise", "sampling_coordinates"]
 
 #: Log-density gap (nats) beyond which a chain climbs from the best chain's mode instead of
 #: its own: a local mode that much lower (at similar curvature) holds under e^-10 of the
 #: mass, nothing a posterior summary would notice, and a chain started there spends the
 #: fit finding its way out.
 ADOPT_GAP = 10.0
+
+#: Pixels the first climbs' region keeps inside the landmark fit's outline (its error there
+#: is a few pixels at 250^2).
+START_ERODE = 8
 
 #: Levenberg-Marquardt steps over every region pixel that end each climb under the final
 #: posterior (the subset steps before them are noisy near the mode).
@@ -79,6 +85,12 @@ def recentred(params: RenderParameter) -> RenderParameter:
     tx, ty, tz = params.pose.translation
     return params._replace(pose=params.pose._replace(translation=(tx + dx, ty + dy, tz)),
                            camera=params.camera._replace(principal_point=(0.0, 0.0)))
+
+
+def appearance_coordinates(coords: SamplingCoordinates) -> np.ndarray:
+    """Return the (d,) bool mask of the appearance coordinates: albedo, light, colour, specular exponent."""
+    blocks = GAUSSIAN_BLOCKS["gaussian-albedo"] + GAUSSIAN_BLOCKS["gaussian-shading"]
+    return np.array([n.startswith(blocks) for n in coords.names])
 
 
 def sampling_coordinates(params: RenderParameter) -> SamplingCoordinates:
@@ -122,11 +134,11 @@ class GaussianPhases:
                                geometry=self.posterior.geometry, region=region)
 
     def _climb(self, post, params: RenderParameter, steps: int, *,
-               polish: int = 0) -> ModeResult:
+               polish: int = 0, free: np.ndarray | None = None) -> ModeResult:
         curvature = PosteriorCurvature(post.face, self.coords.layout,
                                        caster=self._scene_caster())
         res = find_mode(post.face, curvature, self.coords, params, rng=self.rng,
-                        max_steps=steps)
+                        max_steps=steps, free=free)
         if polish:
             more = find_mode(post.face, curvature, self.coords, res.params, rng=self.rng,
                              max_steps=polish, step_pixels=np.iinfo(np.int64).max)
@@ -154,8 +166,19 @@ class GaussianPhases:
         start = recentred(self.state.params)
         self.coords = sampling_coordinates(start)
         params, noise, traces = start, provisional_noise(cfg), []
-        for _ in range(max(1, cfg.mode_rounds)):
-            region = self._region(params)
+        # the appearance first, the landmark fit's geometry held: from the mean albedo a
+        # joint step trades geometry for colour (e.g. along focal length and distance)
+        # and can end in a far local mode
+        # (over a region kept well inside the landmark fit's outline: a region pixel the
+        # true face does not cover pulls the geometry to cover it, and the region of a
+        # climb's end is that of the next climb)
+        region = self._region(params, erode=START_ERODE)
+        res = self._climb(self._region_posterior(region, noise), params, cfg.mode_steps,
+                          free=appearance_coordinates(self.coords))
+        params = res.params
+        traces.append(list(res.trace))
+        for i in range(max(1, cfg.mode_rounds)):
+            region = self._region(params, erode=START_ERODE if i == 0 else None)
             res = self._climb(self._region_posterior(region, noise), params, cfg.mode_steps)
             params = res.params
             traces.append(list(res.trace))
@@ -166,9 +189,10 @@ class GaussianPhases:
         self.state = init(self.state.params, self.posterior.face, image=True)
         return {"score": float(score), "trace": traces}
 
-    def _region(self, params: RenderParameter) -> np.ndarray:
+    def _region(self, params: RenderParameter, erode: int | None = None) -> np.ndarray:
+        erode = self.cfg.region_erode if erode is None else max(erode, self.cfg.region_erode)
         return region_of(self._scene_caster(), params, self._usable(),
-                         erode=self.cfg.region_erode, contour_band=self.cfg.region_band)
+                         erode=erode, contour_band=self.cfg.region_band)
 
     def _measure(self, params: RenderParameter) -> tuple[np.ndarray, NoiseModel]:
         region = self._region(params)

@@ -87,7 +87,8 @@ def _exact(target: FaceTarget, coords: SamplingCoordinates, params: RenderParame
 
 def find_mode(target: FaceTarget, curvature: PosteriorCurvature, coords: SamplingCoordinates,
               params: RenderParameter, *, rng: np.random.Generator, max_steps: int = 10,
-              tolerance: float = 0.1, step_pixels: int = STEP_PIXELS) -> ModeResult:
+              tolerance: float = 0.1, step_pixels: int = STEP_PIXELS,
+              free: np.ndarray | None = None) -> ModeResult:
     """Climb from ``params`` to the mode of ``target``'s posterior (see the module notes).
 
     Parameters
@@ -106,6 +107,9 @@ def find_mode(target: FaceTarget, curvature: PosteriorCurvature, coords: Samplin
         Stop when a step gains less log density than this.
     step_pixels : int
         Region pixels per step (a random subset when the region is larger).
+    free : (d,) bool, optional
+        Move only these coordinates (the others held; default all): the
+        conditional mode of the free ones.
 
     Returns
     -------
@@ -128,14 +132,21 @@ def find_mode(target: FaceTarget, curvature: PosteriorCurvature, coords: Samplin
         cur = curvature.at(params, pixels=pixels, weight=weight)
         g, prec = coords.to_coordinates(cur.gradient, cur.precision, u,
                                         second_order=cur.exact_gradient)
+        if free is not None:
+            g, prec = g[free], prec[np.ix_(free, free)]
         diag = np.maximum(np.diag(prec), 1e-12)
         moved = False
         for _ in range(12):
             try:
-                du = np.linalg.solve(prec + lam * np.diag(diag), g)
+                step = np.linalg.solve(prec + lam * np.diag(diag), g)
             except np.linalg.LinAlgError:
                 lam *= 4.0
                 continue
+            if free is None:
+                du = step
+            else:
+                du = np.zeros_like(u)
+                du[free] = step
             u_new = u + du
             p_new = coords.params_of(u_new, params)
             v_new = _exact(target, coords, p_new, u_new)

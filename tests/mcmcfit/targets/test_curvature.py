@@ -131,3 +131,22 @@ def test_climb_reaches_the_mode_and_laplace_is_positive_definite(problem):
     grad = coordinate_gradient(cur, coords)
     value, g = grad(p)
     assert np.isfinite(value) and g.shape == (coords.size,)
+
+
+def test_climb_with_held_coordinates_moves_only_the_free_ones(problem):
+    """The appearance-only climb: geometry held exactly, the appearance's conditional mode reached."""
+    from mcmcfit.fitting.gaussian_stage import appearance_coordinates
+
+    _, truth, face, lay, cur = problem
+    coords = SamplingCoordinates(lay, truth)
+    start = truth._replace(environment_map=SHLight(truth.environment_map.coefficients * 1.3))
+    free = appearance_coordinates(coords)
+    assert free.any() and not free.all()
+    res = find_mode(face, cur, coords, start, rng=np.random.default_rng(0), max_steps=15,
+                    free=free)
+    u0, u1 = coords.u_of(start), coords.u_of(res.params)
+    np.testing.assert_array_equal(u1[~free], u0[~free])
+    assert res.iterations >= 1 and res.log_density > res.trace[0]
+    # the geometry is the truth's: the conditional mode is at least as good as the truth
+    exact_truth = init(truth, face).log_posterior + coords.log_jacobian(coords.u_of(truth))
+    assert res.trace[0] < exact_truth - 20.0 < res.log_density
