@@ -166,19 +166,19 @@ class GaussianPhases:
         start = recentred(self.state.params)
         self.coords = sampling_coordinates(start)
         params, noise, traces = start, provisional_noise(cfg), []
-        # the appearance first, the landmark fit's geometry held: from the mean albedo a
-        # joint step trades geometry for colour (e.g. along focal length and distance)
-        # and can end in a far local mode
-        # (over a region kept well inside the landmark fit's outline: a region pixel the
-        # true face does not cover pulls the geometry to cover it, and the region of a
-        # climb's end is that of the next climb)
+        # The appearance first, the landmark fit's geometry held: from the mean albedo a
+        # joint step trades geometry for colour (e.g. along focal length and distance) and
+        # can end in a far local mode. The first climbs read pixels well inside the landmark
+        # fit's outline: a region pixel the true face does not cover pulls the geometry to
+        # cover it. (The region depends on the geometry alone: it is reused until that moves.)
         region = self._region(params, erode=START_ERODE)
         res = self._climb(self._region_posterior(region, noise), params, cfg.mode_steps,
                           free=appearance_coordinates(self.coords))
         params = res.params
         traces.append(list(res.trace))
         for i in range(max(1, cfg.mode_rounds)):
-            region = self._region(params, erode=START_ERODE if i == 0 else None)
+            if i > 0 and cfg.noise != "estimated":
+                region = self._region(params)
             res = self._climb(self._region_posterior(region, noise), params, cfg.mode_steps)
             params = res.params
             traces.append(list(res.trace))
