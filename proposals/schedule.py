@@ -84,7 +84,8 @@ _SCALE_WEIGHTS = (0.2, 0.6, 0.2)
 #: multiplier each, :data:`Scales`); the data-driven draws have no step size.
 FAMILIES = ("yaw", "pitch", "roll", "translation", "distance", "focal", "shape", "albedo",
             "expression", "color-transform", "light", "specular-exponent",
-            "pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading")
+            "pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
+            "geometry-walk", "geometry-wide")
 
 
 #: ``{family: multiplier}`` of every step size of a family (missing: 1). Proposal

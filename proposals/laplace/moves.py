@@ -113,6 +113,18 @@ class GaussianApproximation:
         """Return a draw of ``N(m, scale^2 S)``."""
         return self.mean + scale * (self.chol_cov @ rng.normal(size=self.size))
 
+    def widened(self, mask: np.ndarray, factor: float) -> GaussianApproximation:
+        """Return the approximation with the sds of the ``mask`` coordinates times ``factor``.
+
+        The precision becomes ``D P D`` with ``D = diag(1 / factor on mask, 1 elsewhere)``:
+        the block's covariance is scaled by ``factor^2``, its cross-covariances by
+        ``factor``, its conditional sds given the rest by ``factor``.
+        """
+        if not (math.isfinite(factor) and factor > 0.0):
+            raise InputError(f"widening factor must be positive, got {factor!r}")
+        d = np.where(np.asarray(mask, bool).reshape(-1), 1.0 / factor, 1.0)
+        return GaussianApproximation(self.mean, self.precision * np.outer(d, d))
+
 
 def _check(coords: SamplingCoordinates, approx: GaussianApproximation) -> None:
     if coords.size != approx.size:

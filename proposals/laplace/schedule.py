@@ -1,13 +1,16 @@
-"""The Gaussian sampler's image-stage schedule: Crank-Nicolson, Gaussian blocks, exact conditionals.
+"""The Gaussian sampler's image-stage schedule: Crank-Nicolson, Gaussian blocks, a walk, exact conditionals.
 
 :func:`gaussian_image_proposal` mixes the moves of :mod:`proposals.laplace.moves`
-built on a fit's Laplace approximation with the albedo's and the SH light's
-exact conditionals. Each Gaussian family has a step ``sqrt(1 - rho^2)``
-(:data:`GAUSSIAN_STEPS`) that the warm-up multiplies towards an acceptance rate
-(:data:`GAUSSIAN_TARGETS`); :func:`rho_of` turns a multiplier into ``rho``.
+built on a fit's Laplace approximation, the geometry's random walk shaped by it
+(:mod:`proposals.laplace.random_walk`: the move that keeps a chain moving where
+the posterior is wider than the approximation) and the albedo's and the SH
+light's exact conditionals. Each Gaussian family has a step ``sqrt(1 - rho^2)``
+(:data:`GAUSSIAN_STEPS`), the walk a step in conditional sds, that the warm-up
+multiplies towards an acceptance rate (:data:`GAUSSIAN_TARGETS`); :func:`rho_of`
+turns a multiplier into ``rho``.
 
 This module imports :mod:`proposals` (albedo_solver, base, light_conditional,
-schedule) and :mod:`proposals.laplace` (coordinates, moves).
+schedule) and :mod:`proposals.laplace` (coordinates, moves, random_walk).
 """
 
 from __future__ import annotations
@@ -20,33 +23,51 @@ from proposals.albedo_solver import AlbedoConditional, AlbedoData
 from proposals.base import Mixture, mixture
 from proposals.laplace.coordinates import SamplingCoordinates
 from proposals.laplace.moves import CrankNicolson, GaussianApproximation, GaussianBlockConditional
+from proposals.laplace.random_walk import GaussianRandomWalk
 from proposals.light_conditional import LightConditional
 from proposals.schedule import Scales
 
 __all__ = ["BLOCK_SHARES", "GAUSSIAN_BLOCKS", "GAUSSIAN_FAMILIES", "GAUSSIAN_STEPS", "GAUSSIAN_TARGETS",
-           "gaussian_image_proposal", "rho_of"]
+           "WALK_SCALE", "WIDE_FACTOR", "gaussian_image_proposal", "rho_of", "walk_scale"]
 
 #: The Gaussian moves' families (warm-up adapts one step multiplier each).
-GAUSSIAN_FAMILIES = ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading")
+GAUSSIAN_FAMILIES = ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
+                     "geometry-walk", "geometry-wide")
 
 #: Initial Crank-Nicolson step ``sqrt(1 - rho^2)`` of the Gaussian moves' families (the
 #: warm-up multiplies it by the family's multiplier, at most to 1: an independent draw).
 GAUSSIAN_STEPS = {"pcn": 0.85, "gaussian-geometry": 0.8, "gaussian-albedo": 1.0,
-                  "gaussian-shading": 0.8}
+                  "gaussian-shading": 0.8, "geometry-wide": 0.5}
 
 #: Acceptance rates the warm-up tunes the Gaussian families' steps to (measured on the demo
 #: face: the Crank-Nicolson move's effective samples per step peak near 0.2 acceptance).
 GAUSSIAN_TARGETS = {"pcn": 0.2, "gaussian-geometry": 0.3, "gaussian-albedo": 0.3,
-                    "gaussian-shading": 0.3}
+                    "gaussian-shading": 0.3, "geometry-walk": 0.25, "geometry-wide": 0.25}
+
+#: Initial step of the geometry's random walk, in conditional sds per coordinate, times
+#: ``1 / sqrt(k)`` for a block of ``k`` coordinates (2.4 / sqrt(k): the optimal walk's
+#: step where the posterior matches the approximation; Roberts, Gelman & Gilks 1997).
+WALK_SCALE = 2.4
 
 #: Shares of the block moves' top-level weight. The albedo and shading blocks cost a
 #: re-shading (1-2 ms) where a geometry move re-casts the rays (~14 ms at 250^2).
-BLOCK_SHARES = {"gaussian-geometry": 0.6, "gaussian-albedo": 0.2, "gaussian-shading": 0.2}
+BLOCK_SHARES = {"gaussian-geometry": 0.25, "geometry-wide": 0.15, "geometry-walk": 0.2,
+                "gaussian-albedo": 0.2, "gaussian-shading": 0.2}
+
+#: Sd factor of the approximation the "geometry-wide" block draws use: reversible with
+#: respect to a Gaussian twice as wide in the geometry, their acceptance ``w(u') / w(u)``
+#: (``w`` the posterior over that Gaussian) stays moderate where the posterior's tails
+#: outreach the Laplace approximation's, so a chain out there is drawn back in large steps.
+WIDE_FACTOR = 2.0
 
 #: The coordinates of the Gaussian moves' blocks (by name prefix, :mod:`proposals.laplace.coordinates`).
 GAUSSIAN_BLOCKS = {
     "gaussian-geometry": ("shape", "expression", "angles", "translation", "log_distance",
                           "log_focal_length", "principal_point"),
+    "geometry-walk": ("shape", "expression", "angles", "translation", "log_distance",
+                      "log_focal_length", "principal_point"),
+    "geometry-wide": ("shape", "expression", "angles", "translation", "log_distance",
+                      "log_focal_length", "principal_point"),
     "gaussian-albedo": ("albedo",),
     "gaussian-shading": ("light", "gain", "contrast", "offset", "log_specular_exponent"),
 }
@@ -56,6 +77,11 @@ def rho_of(family: str, scales: Scales | None) -> float:
     """Return the Crank-Nicolson ``rho`` of a Gaussian family at its step multiplier."""
     step = min(1.0, GAUSSIAN_STEPS[family] * float((scales or {}).get(family, 1.0)))
     return math.sqrt(max(0.0, 1.0 - step * step))
+
+
+def walk_scale(k: int, scales: Scales | None) -> float:
+    """Return the geometry walk's step (conditional sds) for a ``k``-coordinate block at its multiplier."""
+    return WALK_SCALE / math.sqrt(max(1, k)) * float((scales or {}).get("geometry-walk", 1.0))
 
 
 def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproximation, *,
@@ -98,8 +124,13 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
     for family, share in BLOCK_SHARES.items():
         mask = np.array([n.startswith(GAUSSIAN_BLOCKS[family]) for n in names])
         if mask.any() and block_weight > 0:
-            move = GaussianBlockConditional(coords, approx, mask, name=family,
-                                            rho=rho_of(family, k))
+            if family == "geometry-walk":
+                move = GaussianRandomWalk(coords, approx, mask,
+                                          walk_scale(int(mask.sum()), k), name=family)
+            else:
+                base = approx.widened(mask, WIDE_FACTOR) if family == "geometry-wide" else approx
+                move = GaussianBlockConditional(coords, base, mask, name=family,
+                                                rho=rho_of(family, k))
             parts.append((share * block_weight, mixture((1.0, move), name=family)))
     if albedo_data is not None and albedo_weight > 0:
         parts.append((albedo_weight, AlbedoConditional(albedo_data, sigma=pixel_sigma)))

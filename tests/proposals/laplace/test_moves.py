@@ -27,6 +27,7 @@ from proposals.laplace.moves import (
     GaussianBlockConditional,
     GaussianHMC,
 )
+from proposals.laplace.random_walk import GaussianRandomWalk
 
 SEEDS = (1, 2, 3)
 
@@ -187,6 +188,9 @@ def test_block_conditionals_keep_the_target(seed):
                                                                          "offset", "albedo"))]
     moves = [GaussianBlockConditional(c, approx, m, name=f"b{i}", rho=r)
              for i, m in enumerate(blocks) for r in (0.0, 0.5)]
+    # a block drawn about a widened approximation (the "geometry-wide" family) is exact too
+    moves.append(GaussianBlockConditional(c, approx.widened(blocks[0], 2.0), blocks[0],
+                                          name="wide", rho=0.5))
 
     class Cycle:
         name, touches = "cycle", Block.ALL
@@ -232,7 +236,71 @@ class FrozenHMC:
         return Move(c.params_of(u_new, state.params), ratio, self.touches, h.name, joint=True)
 
 
-@pytest.mark.parametrize("control", ["drop", "frozen"])
+def test_widened_approximation_scales_the_block():
+    c = _coords()
+    target = Target(c, 2)
+    approx = target.approximation(2)
+    mask = np.arange(c.size) < 4
+    wide = approx.widened(mask, 2.0)
+    cov, cov2 = approx.covariance(), wide.covariance()
+    f = np.where(mask, 2.0, 1.0)
+    np.testing.assert_allclose(cov2, cov * np.outer(f, f), rtol=1e-9, atol=1e-12)
+    with pytest.raises(InputError):
+        approx.widened(mask, 0.0)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_random_walk_keeps_the_target(seed):
+    c = _coords()
+    target = Target(c, seed)
+    approx = target.approximation(seed)
+    move = GaussianRandomWalk(c, approx, np.ones(c.size, bool), 2.4 / math.sqrt(c.size))
+    samples, acc = run_chain(move, target.log_p, c.template, c.u_of, 30_000, seed=seed)
+    assert 0.1 < acc < 0.6 and move.touches == c.touches
+    _check(samples, target)
+    assert move.with_scale(0.5).scale == 0.5 and move.with_scale(0.5).name == move.name
+    with pytest.raises(InputError):
+        GaussianRandomWalk(c, approx, np.zeros(c.size, bool))
+    with pytest.raises(InputError):
+        GaussianRandomWalk(c, approx, np.ones(c.size, bool), 0.0)
+
+
+def test_random_walk_escapes_the_approximations_tails():
+    """A state far in the approximation's tails, typical for a wider posterior: the walk moves on.
+
+    Target ``N(m, 9 S)`` (three times wider than the approximation), started 6
+    approximation sds out along a coordinate: independent Crank-Nicolson draws
+    are refused (their acceptance is ``w(u') / w(u)`` with ``w`` the target over
+    the approximation, largest out there), the walk's are not.
+    """
+    c = _coords()
+    target = Target(c, 1)
+    approx = GaussianApproximation(target.mean, target.prec)
+    wide = Target(c, 1)
+    wide.prec = target.prec / 9.0
+    start = target.mean + 6.0 * target.sd * np.eye(c.size)[0]
+    params = c.params_of(start)
+    walk = GaussianRandomWalk(c, approx, np.ones(c.size, bool), 2.4 / math.sqrt(c.size))
+    pcn = CrankNicolson(c, approx, 0.0)
+    _, acc_walk = run_chain(walk, wide.log_p, params, c.u_of, 300, seed=1)
+    _, acc_pcn = run_chain(pcn, wide.log_p, params, c.u_of, 300, seed=1)
+    assert acc_walk > 0.2 and acc_pcn < 0.02, (acc_walk, acc_pcn)
+
+
+class CrankNicolsonAsWalk:
+    """Negative control: a Crank-Nicolson draw given a symmetric walk's ratio (the approximation's densities left out)."""
+
+    def __init__(self, pcn: CrankNicolson):
+        self.pcn, self.name, self.touches = pcn, pcn.name, pcn.touches
+
+    def __call__(self, rng, state) -> Move:
+        move = self.pcn(rng, state)
+        c = self.pcn.coords
+        u, u_new = c.u_of(state.params), c.u_of(move.params)
+        return move._replace(log_q_ratio=c.log_jacobian(u_new) - c.log_jacobian(u))
+
+
+@pytest.mark.parametrize("control", ["drop", "frozen", "walk"])
 def test_wrong_ratios_give_wrong_moments(control):
     """Controls for the tests above: without the exact ratio the moments are off.
 
@@ -247,6 +315,9 @@ def test_wrong_ratios_give_wrong_moments(control):
         approx = target.approximation(seed)
         if control == "drop":
             move = DropRatio(CrankNicolson(c, approx, 0.0))
+            steps = 6000
+        elif control == "walk":
+            move = CrankNicolsonAsWalk(CrankNicolson(c, approx, 0.7))
             steps = 6000
         else:
             move = FrozenHMC(GaussianHMC(c, approx, target.grad, step=0.6, n_leapfrog=3))
