@@ -16,6 +16,9 @@ tlms, pts
     Landmark files: scalismo-faces TLMS and iBUG 68-point ``.pts``.
 image_io
     Reading and writing PNG/JPEG images.
+colour_space
+    A model's colour space (linear albedo or gamma-encoded sRGB texture) and
+    the sRGB decoding and encoding of texture values.
 mesh_export
     Meshes with per-vertex colours to PLY or OBJ.
 atomic, text_files

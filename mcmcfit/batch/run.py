@@ -71,6 +71,10 @@ class BatchOptions:
         Pin pool workers to cores.
     progress : bool
         Show the progress bar.
+    model_colour : {"linear", "srgb"} or None
+        The model's colour space (``--model-colour``): set in every fit's config
+        (``FitConfig.model_colour``); None keeps the config's (by default read
+        from the model).
     """
 
     input: Path
@@ -88,6 +92,7 @@ class BatchOptions:
     dask: bool = False
     pin: bool = False
     progress: bool = True
+    model_colour: str | None = None
 
 
 @dataclass
@@ -134,8 +139,10 @@ def plan_batch(opts: BatchOptions) -> BatchPlan:
                               allow_face_box=opts.face_box is not None)
     # a worker with one thread runs its chains one after the other: the batch's
     # processes already fill the cores (chains in parallel would oversubscribe them)
+    colour = opts.config.model_colour if opts.model_colour is None else opts.model_colour
     config = opts.config.replace(threads=min(2, max(1, opts.threads)),
-                                 parallel=opts.config.parallel and opts.threads > 1)
+                                 parallel=opts.config.parallel and opts.threads > 1,
+                                 model_colour=colour)
     tasks, complete = [], []
     model = _model_spec(opts.model)
     for item in items:

@@ -159,7 +159,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
                         landmarks_glob=args.landmarks_glob, face_box=face_box, force=args.force,
                         workers=workers, threads=threads, scheduler=args.scheduler,
                         dask=args.dask, pin=args.pin and not (args.scheduler or args.dask),
-                        progress=not args.quiet)
+                        progress=not args.quiet, model_colour=args.model_colour)
     result = run_batch(opts)
     print(f"mcmcfit batch: {result.fitted} fitted, {len(result.failed)} failed, "
           f"{result.already_complete} already complete, {result.skipped} skipped "

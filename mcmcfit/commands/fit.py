@@ -48,6 +48,11 @@ def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "
     p.add_argument("--noise", choices=("estimated", "fixed"),
                    help="image likelihood scale: measured per image from the residuals "
                    "(default) or the configured sigma_px and temperature")
+    p.add_argument("--model-colour", choices=("linear", "srgb"),
+                   help="the model's colour space: linear albedo (AlbedoMM, the built-in "
+                   "models) or a gamma-encoded sRGB texture (BFM 2017), compared with the "
+                   "photograph's encoded values and reported decoded to linear (default: "
+                   "read from the model file, else by its layout)")
     p.add_argument("--seed", type=int, default=0, help="root seed of the fit (default 0)")
     p.add_argument("--config", metavar="F.json",
                    help="fit settings as JSON (a config.json of an earlier fit); "
@@ -79,7 +84,8 @@ def config_from_args(args: argparse.Namespace, **defaults):
                ("chains", args.chains), ("warmup_steps", getattr(args, "warmup_steps", None)),
                ("time_budget", getattr(args, "time_budget", None)),
                ("noise", getattr(args, "noise", None)),
-               ("sampler", getattr(args, "sampler", None)))
+               ("sampler", getattr(args, "sampler", None)),
+               ("model_colour", getattr(args, "model_colour", None)))
     changes = {k: v for k, v in options if v is not None}
     if getattr(args, "serial", False):
         changes["parallel"] = False

@@ -21,6 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from albedo_model.io.colour_space import ColourSpace, resolve_colour_space
 from albedo_model.io.flame_npz import read_flame_albedo_npz
 from albedo_model.io.model_files import (
     combine_model_files,
@@ -47,8 +48,11 @@ def model_info(spec: str) -> dict[str, Any]:
 
     Keys: ``path``, ``sha256``, ``format``, ``vertices``, ``triangles``,
     ``parts`` (name -> rank), ``shared_albedo``, ``landmarks`` (names),
-    ``landmarks_on_vertices``, ``colour_space``, ``metadata``; a FLAME npz
-    also has ``texture_shape`` (and ``vertices``/``triangles`` are None).
+    ``landmarks_on_vertices``, ``colour_space`` (what the metadata says, or
+    None), ``model_colour`` (the colour space a fit reads, ``value`` "linear" or
+    "srgb", ``source`` and ``label``: :func:`albedo_model.io.colour_space.resolve_colour_space`),
+    ``metadata``; a FLAME npz also has ``texture_shape`` (and
+    ``vertices``/``triangles`` are None).
     """
     path = resolve_model(spec)
     kind = model_file_kind(path)
@@ -64,6 +68,7 @@ def model_info(spec: str) -> dict[str, Any]:
             vertices=None, triangles=None, parts=parts, shared_albedo=True, landmarks=[],
             landmarks_on_vertices=0, colour_space="linear sRGB",
             texture_shape=list(albedo.texture_shape), metadata={},
+            model_colour=_colour(resolve_colour_space({}, has_specular=True)),
         )
     elif kind == "albedo-part":
         part = read_albedo_part(path)
@@ -77,6 +82,7 @@ def model_info(spec: str) -> dict[str, Any]:
             parts={"diffuse": part.diffuse.rank, "specular": part.specular.rank},
             shared_albedo=True, landmarks=list(part.landmarks), landmarks_on_vertices=on_vertices,
             colour_space=part.metadata.get("colour_space"), metadata=part.metadata,
+            model_colour=_colour(resolve_colour_space(part.metadata, has_specular=True)),
         )
     else:
         model = load_model(path)
@@ -85,8 +91,18 @@ def model_info(spec: str) -> dict[str, Any]:
             shared_albedo=model.shared_albedo, landmarks=list(model.landmarks),
             landmarks_on_vertices=len(model.landmark_vertices),
             colour_space=model.metadata.get("colour_space"), metadata=dict(model.metadata),
+            model_colour=_colour(resolve_colour_space(
+                model.metadata, has_specular=model.specular is not None)),
         )
     return info
+
+
+def _colour(space: ColourSpace) -> dict[str, str]:
+    return {"value": space.value, "source": space.source, "label": space.label}
+
+
+def _colour_line(colour: dict[str, str]) -> str:
+    return f"{colour['value']} ({colour['label']}; from {colour['source']})"
 
 
 def _print_info(info: dict[str, Any]) -> None:
@@ -95,7 +111,7 @@ def _print_info(info: dict[str, Any]) -> None:
         ("vertices", info["vertices"]), ("triangles", info["triangles"]),
         ("parts", ", ".join(f"{k} {v}" for k, v in info["parts"].items())),
         ("shared albedo", "yes" if info["shared_albedo"] else "no"),
-        ("colour space", info["colour_space"] or "unknown"),
+        ("colour space", _colour_line(info["model_colour"])),
         ("landmarks", f"{len(info['landmarks'])} ({info['landmarks_on_vertices']} on vertices)"),
     ]
     if "texture_shape" in info:

@@ -4,11 +4,14 @@ Albedo coefficients are drawn from N(0, I); the shape stays at the mean. Each
 face is rendered at a random yaw in [-30, 30] degrees with a white frontal
 light (Lambert diffuse + Blinn-Phong with shininess 20, scaled by the sampled
 specular albedo when the model has one), then gamma-encoded with the pure power
-1/2.2, and the renders are tiled into one image.
+1/2.2, and the renders are tiled into one image. A model whose colour is a
+gamma-encoded sRGB texture (BFM 2017;
+:func:`albedo_model.io.colour_space.model_colour_space`) renders encoded values
+already: they are shown as rendered, not encoded twice.
 
 This module imports :mod:`albedo_model.errors`; :mod:`albedo_model` (``camera``,
-``io.image_io``, ``params``, ``render.renderer``) and :mod:`mcmcfit.jobs.model_spec`
-are imported when it runs.
+``io.colour_space``, ``io.image_io``, ``params``, ``render.renderer``) and
+:mod:`mcmcfit.jobs.model_spec` are imported when it runs.
 """
 
 from __future__ import annotations
@@ -32,18 +35,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--columns", type=int, default=10, help="faces per row (default: 10)")
     parser.add_argument("--max-yaw", type=float, default=30.0, help="degrees (default: 30)")
     parser.add_argument("-o", "--output", type=Path, required=True, help="grid image (.png)")
+    parser.add_argument("--model-colour", choices=("linear", "srgb"),
+                        help="the model's colour space (default: read from the model file, "
+                        "else by its layout)")
 
 
 def sample_faces(model, n: int, rng: np.random.Generator, *, size: int = 200,
-                 max_yaw_deg: float = 30.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 max_yaw_deg: float = 30.0, model_colour: str | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Render ``n`` random albedo samples of ``model``.
+
+    Parameters
+    ----------
+    model : MorphableModel
+    n : int
+    rng : numpy.random.Generator
+    size : int
+        Pixels per face.
+    max_yaw_deg : float
+    model_colour : {"linear", "srgb"}, optional
+        The model's colour space (default: the model's,
+        :func:`albedo_model.io.colour_space.model_colour_space`); an sRGB
+        texture is not encoded again.
 
     Returns
     -------
-    images : (n, size, size, 3) float32, gamma-encoded
+    images : (n, size, size, 3) float32, gamma-encoded (as rendered for an sRGB-texture model)
     masks : (n, size, size) bool
     yaws : (n,) float64, radians
     """
+    from albedo_model.io.colour_space import model_colour_space
     from albedo_model.params import (
         Block, DirectionalLight, ImageSize, MoMoCoefficients, Pose, SHLight, default_square,
     )
@@ -59,7 +80,8 @@ def sample_faces(model, n: int, rng: np.random.Generator, *, size: int = 200,
                              specular=(1.0,) * 3, shininess=20.0)
     p = p._replace(image_size=ImageSize(size, size), environment_map=SHLight.empty(),
                    directional_light=light)
-    renderer = Renderer(model, gamma=True, directional_specular_map=True)
+    srgb = model_colour_space(model, model_colour).is_srgb
+    renderer = Renderer(model, gamma=not srgb, directional_specular_map=True)
     yaws = rng.uniform(-1, 1, n) * np.deg2rad(max_yaw_deg)
     coeffs = rng.standard_normal((n, model.diffuse.rank))
     images = np.zeros((n, size, size, 3), np.float32)
@@ -90,7 +112,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--n and --columns must be positive and --size at least 16")
     model = load_model_spec(args.model)
     images, masks, _ = sample_faces(model, args.n, np.random.default_rng(args.seed),
-                                    size=args.size, max_yaw_deg=args.max_yaw)
+                                    size=args.size, max_yaw_deg=args.max_yaw,
+                                    model_colour=getattr(args, "model_colour", None))
     cols = min(args.columns, args.n)
     rows = -(-args.n // cols)
     s = args.size

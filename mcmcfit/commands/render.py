@@ -1,5 +1,10 @@
 """``mcmcfit render MODEL PARAMS.rps -o out.png``: render the instance an .rps describes.
 
+A model whose colour is a gamma-encoded sRGB texture (BFM 2017;
+:func:`albedo_model.io.colour_space.model_colour_space`) renders encoded values
+already: they are written as they are (``--linear`` decodes them), never
+encoded a second time.
+
 This module imports :mod:`albedo_model.errors`; :mod:`albedo_model` (``io``, ``params``,
 ``render.renderer``) and :mod:`mcmcfit.jobs.model_spec` are imported when it runs.
 """
@@ -27,7 +32,8 @@ def register(subparsers) -> None:
         "render", help="render the model instance described by a .rps file",
         description="Render the model instance of a .rps file (shape/colour/expression "
         "coefficients from its momo block; missing ones are zero). By default an RGBA PNG, "
-        "gamma-encoded (pure power 1/2.2) 8-bit, transparent background.",
+        "gamma-encoded (pure power 1/2.2) 8-bit, transparent background; a model whose "
+        "colour is an sRGB texture (BFM 2017) is written as rendered, not encoded twice.",
     )
     p.add_argument("model", help="model file (.h5) or 'default'")
     p.add_argument("params", help="render parameters (.rps, any version)")
@@ -38,11 +44,15 @@ def register(subparsers) -> None:
     p.add_argument("--size", type=_size, metavar="WxH",
                    help="image size (same camera; the principal point stays in NDC)")
     p.add_argument("--no-specular", action="store_true", help="diffuse only")
+    p.add_argument("--model-colour", choices=("linear", "srgb"),
+                   help="the model's colour space (default: read from the model file, else by "
+                   "its layout)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Render the instance of ``args.params`` and write the PNG; return the exit code."""
+    from albedo_model.io.colour_space import decode_texture, model_colour_space
     from albedo_model.io.image_io import write_png
     from albedo_model.io.rps import read_rps
     from albedo_model.params import ImageSize
@@ -57,8 +67,11 @@ def run(args: argparse.Namespace) -> int:
         if not args.specular_exponent > 0:
             raise InputError(f"--specular-exponent must be positive, got {args.specular_exponent}")
         params = params._replace(specular_exponent=float(args.specular_exponent))
-    out = render(model, params, specular=not args.no_specular, gamma=not args.linear)
-    write_png(args.output, out.image, alpha=out.mask, bits=16 if args.linear else 8)
+    srgb = model_colour_space(model, getattr(args, "model_colour", None)).is_srgb
+    out = render(model, params, specular=not args.no_specular,
+                 gamma=not (args.linear or srgb))
+    image = decode_texture(out.image) if srgb and args.linear else out.image
+    write_png(args.output, image, alpha=out.mask, bits=16 if args.linear else 8)
     print(f"wrote {args.output} ({params.image_size.width}x{params.image_size.height}, "
           f"{int(out.mask.sum())} face pixels)")
     return 0

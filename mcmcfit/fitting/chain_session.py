@@ -52,7 +52,7 @@ from mcmcfit.proposal_data.light import RenderLightData
 from mcmcfit.proposal_data.light_system import RenderLightSystem
 from mcmcfit.sampling.chain import ChainRecord, ChainRecorder, ChainResult
 from mcmcfit.sampling.kernel import ChainState, init, run
-from mcmcfit.targets.curvature import SceneCaster
+from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster, coordinate_gradient
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.base import ProposalState
 from proposals.gradient import MALA, block_vector
@@ -111,6 +111,7 @@ class ChainSession(GaussianPhases):
         self.mala_step = float(self.cfg.mala_step)
         self.mala_diag = initial_diagonal(problem.start)
         self._gradient = None
+        self._hmc_gradient = None
         self.region: np.ndarray | None = None
         self.coords = None
         self.approx: GaussianApproximation | None = None
@@ -157,7 +158,9 @@ class ChainSession(GaussianPhases):
                 pixel_sigma=post.pixel_sigma, light_conditional=light_conditional,
                 pcn_weight=cfg.pcn_weight, block_weight=cfg.block_weight,
                 albedo_weight=0.5 * cfg.conditional_weight,
-                light_conditional_weight=0.5 * cfg.conditional_weight)
+                light_conditional_weight=0.5 * cfg.conditional_weight,
+                gradient=self._coordinate_gradient() if cfg.hmc_weight > 0 else None,
+                hmc_weight=cfg.hmc_weight, hmc_leapfrog=cfg.hmc_leapfrog)
             self.family = family_of(self.proposal)
             return
         extra = []
@@ -175,6 +178,16 @@ class ChainSession(GaussianPhases):
             light_conditional=light_conditional,
             light_conditional_weight=cfg.light_conditional_weight, extra_moves=extra)
         self.family = {**family_of(self.proposal), "mala": "mala"}
+
+    def _coordinate_gradient(self):
+        """Return the posterior's gradient in the sampling coordinates (built once, for the HMC move)."""
+        if self._hmc_gradient is None:
+            curvature = PosteriorCurvature(self.posterior.face, self.coords.layout,
+                                           caster=self._scene_caster())
+            triangles = (curvature.region_triangles(self.mode.params)
+                         if self.cfg.hmc_triangles == "mode" else None)
+            self._hmc_gradient = coordinate_gradient(curvature, self.coords, triangles)
+        return self._hmc_gradient
 
     def _check(self) -> CacheCheck | None:
         if not self.cfg.check_cache:

@@ -78,6 +78,18 @@ class FitConfig:
         coordinate, of the Gaussian block moves (geometry, albedo, shading:
         :data:`proposals.laplace.schedule.BLOCK_SHARES`) and of the albedo's and the
         SH light's exact conditionals (half each).
+    hmc_weight, hmc_leapfrog : float, int
+        Gaussian sampler: top-level weight of the whitened HMC move of every
+        coordinate (:class:`proposals.laplace.moves.GaussianHMC`; each of its
+        ``hmc_leapfrog`` leapfrog steps is a ray cast and a gradient through the
+        shading), 0 for none.
+    hmc_triangles : {"cast", "mode"}
+        Gaussian sampler: the triangles the HMC gradient renders each region
+        pixel with: those a ray cast at the point sees (``"cast"``: the exact
+        gradient) or those of the mode, each triangle's plane extrapolated
+        (``"mode"``: a smooth surrogate, no ray cast per leapfrog step). Either
+        is a function of the position alone, so the move stays exact; the
+        acceptance test uses the exact ray-cast posterior.
     stop_when_converged : bool
         End the image stage at the first check where every monitored quantity
         has rank-normalised split R-hat < 1.01 and bulk- and tail-ESS >= 400.
@@ -177,6 +189,13 @@ class FitConfig:
         Debug mode (``--check-cache``): after every step compare every cached
         product (render, log densities, proposal data) with a fresh computation
         (:mod:`mcmcfit.fitting.cache_check`); several times slower.
+    model_colour : {"linear", "srgb"} or None
+        The colour space of the model's colour parts (``--model-colour``); None
+        reads it from the model (:func:`albedo_model.io.colour_space.model_colour_space`:
+        metadata, then layout). ``"srgb"``: the model's colour is taken as the
+        camera's sRGB values, as the reference does, and the render is compared
+        with the photograph's encoded values (not linearised); the reported
+        albedo is decoded to linear.
     prior : PriorConfig
     """
 
@@ -196,6 +215,9 @@ class FitConfig:
     pcn_weight: float = 0.4
     block_weight: float = 0.5
     conditional_weight: float = 0.1
+    hmc_weight: float = 0.0
+    hmc_leapfrog: int = 4
+    hmc_triangles: str = "cast"
     stop_when_converged: bool = True
     time_budget: float | None = None
     noise: str = "estimated"
@@ -232,6 +254,7 @@ class FitConfig:
     face_box_centre_sigma: float = 0.1
     threads: int | None = None
     check_cache: bool = False
+    model_colour: str | None = None
     prior: PriorConfig = field(default_factory=PriorConfig)
 
     def __post_init__(self) -> None:
@@ -244,6 +267,7 @@ class FitConfig:
         for name in ("steps", "landmark_steps", "n_shape", "n_albedo", "n_expression"):
             count(name)
         count("noise_updates")
+        count("hmc_leapfrog", 1)
         for name in ("mode_rounds", "mode_steps", "region_erode", "region_band"):
             count(name)
         if self.warmup_steps is not None:
@@ -258,7 +282,7 @@ class FitConfig:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise InputError(f"fit config: {name} must be > 0, got {v!r}")
         for name in ("stage1_shape_weight", "specular_weight", "albedo_weight",
-                     "light_conditional_weight", "mala_weight", "pcn_weight", "block_weight",
+                     "light_conditional_weight", "mala_weight", "pcn_weight", "block_weight", "hmc_weight",
                      "conditional_weight"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
@@ -266,7 +290,8 @@ class FitConfig:
         choices = {"likelihood": IMAGE_LIKELIHOODS, "stage1": ("mh", "emcee"),
                    "background": ("smoothed", "histogram"),
                    "init_pose": ("lsq", "similarity"), "init_light": ("solve", "frontal"),
-                   "noise": ("estimated", "fixed"), "sampler": ("gaussian", "reference", "random-walk")}
+                   "noise": ("estimated", "fixed"), "sampler": ("gaussian", "reference", "random-walk"),
+                   "hmc_triangles": ("cast", "mode")}
         for name, allowed in choices.items():
             if getattr(self, name) not in allowed:
                 raise InputError(f"fit config: {name} must be one of {allowed}, "
@@ -287,6 +312,9 @@ class FitConfig:
                 isinstance(self.time_budget, (int, float)) and self.time_budget > 0):
             raise InputError(f"fit config: time_budget must be > 0 seconds or None, "
                              f"got {self.time_budget!r}")
+        if self.model_colour not in (None, "linear", "srgb"):
+            raise InputError("fit config: model_colour must be 'linear', 'srgb' or None "
+                             f"(read from the model), got {self.model_colour!r}")
         if self.threads not in (None, 1, 2):
             raise InputError(f"fit config: threads must be 1, 2 or None, got {self.threads}")
 

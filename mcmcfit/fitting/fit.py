@@ -74,7 +74,8 @@ def fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConfi
     ----------
     image : (H, W, 3) float array in [0, 1]
         The photograph, gamma-encoded sRGB as read by
-        :func:`albedo_model.io.image_io.read_image` (linearised internally).
+        :func:`albedo_model.io.image_io.read_image` (linearised internally,
+        unless the model's colour is an sRGB texture: ``config.model_colour``).
     landmarks : list of Landmark, mapping name -> (x, y), or None
         2-D target landmarks in pixels (x right, y down); occluded ones ignored.
     model : MorphableModel

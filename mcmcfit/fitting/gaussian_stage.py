@@ -228,6 +228,7 @@ class GaussianPhases:
         """
         self.region = np.asarray(region, bool)
         self.posterior = self._region_posterior(self.region, noise)
+        self._hmc_gradient = None  # a function of the posterior just replaced
         self._build_data()
         start = self.mode.params
         if best is not None:

@@ -6,9 +6,11 @@ turns it into the sampler's targets for one chain and one noise model
 (:class:`~mcmcfit.targets.noise_model.NoiseModel`): its own renderer (one
 ray-casting thread per chain when chains run in processes), the image
 likelihood at the noise model's scale, the landmark or face-box factor and the
-prior.
+prior. The target image is compared in the model's colour space
+(:func:`comparison_colour`): linearised for a linear-albedo model, as encoded
+for a model whose colour is an sRGB texture.
 
-This module imports :mod:`albedo_model` (model, params, render.renderer),
+This module imports :mod:`albedo_model` (model, params, render.renderer, io.colour_space),
 :mod:`mcmcfit.fitting.config` and :mod:`mcmcfit.targets` (face, image,
 landmarks, noise_model, priors).
 """
@@ -20,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from albedo_model.io.colour_space import model_colour_space
 from albedo_model.model import MorphableModel
 from albedo_model.params import ImageSize, RenderParameter
 from albedo_model.render.renderer import Renderer
@@ -31,7 +34,8 @@ from mcmcfit.targets.landmarks import FaceBoxTarget, LandmarkGeometry, LandmarkT
 from mcmcfit.targets.noise_model import NoiseModel, fixed_noise
 from mcmcfit.targets.priors import LogPrior
 
-__all__ = ["FitProblem", "Posterior", "build_posterior", "landmark_factor", "provisional_noise"]
+__all__ = ["FitProblem", "Posterior", "build_posterior", "comparison_colour", "landmark_factor",
+           "provisional_noise"]
 
 
 @dataclass(frozen=True)
@@ -59,6 +63,15 @@ class FitProblem:
     config: FitConfig
     start: RenderParameter
     layout: ParamLayout
+
+
+def comparison_colour(problem: FitProblem) -> str:
+    """Return ``"linear"`` or ``"srgb"``: the model's colour space, which the image is compared in.
+
+    ``config.model_colour`` when set, else what the model says
+    (:func:`albedo_model.io.colour_space.model_colour_space`).
+    """
+    return model_colour_space(problem.model, problem.config.model_colour).value
 
 
 def provisional_noise(cfg: FitConfig) -> NoiseModel:
@@ -138,7 +151,8 @@ def build_posterior(problem: FitProblem, noise: NoiseModel, *, threads: int | No
     if geometry is None:
         geometry = LandmarkGeometry(problem.model, threads=1)
     smooth = noise.sigma if cfg.background == "smoothed" else None
-    target = prepare_image_target(problem.image, bins=cfg.bins, smooth_sigma=smooth)
+    target = prepare_image_target(problem.image, bins=cfg.bins, smooth_sigma=smooth,
+                                  colour=comparison_colour(problem))
     lik = ImageLikelihood(target, kind="independent" if region is not None else cfg.likelihood,
                           sigma=noise.sigma, trim_fraction=cfg.trim_fraction,
                           temperature=max(1.0, noise.temperature), region=region,

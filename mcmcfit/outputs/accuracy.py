@@ -6,7 +6,8 @@ which is the headline ``coverage`` when the model has a residual variance, and
 the coefficient-only one, always.
 
 This module imports :mod:`albedo_model` (camera, model, params, pca),
-:mod:`mcmcfit.outputs.posterior` and :mod:`mcmcfit.sampling.param_vector`.
+:mod:`mcmcfit.outputs.posterior`, :mod:`mcmcfit.outputs.albedo_decoding` and
+:mod:`mcmcfit.sampling.param_vector`.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from albedo_model.model import MorphableModel
 from albedo_model.params import Pose
 from albedo_model.pca import PCAPart
 from mcmcfit.sampling.param_vector import ParamLayout
+from mcmcfit.outputs.albedo_decoding import decoded_albedo_posterior
 from mcmcfit.outputs.posterior import AlbedoPosterior, albedo_posterior
 
 __all__ = ["AlbedoScore", "albedo_score", "albedo_columns", "interval_error",
@@ -134,7 +136,7 @@ def _rows_of(part: PCAPart, vertices: np.ndarray) -> PCAPart:
 
 def albedo_score(model: MorphableModel, samples: np.ndarray, layout: ParamLayout,
                  true_diffuse: np.ndarray, visible: np.ndarray, *,
-                 level: float = 0.9) -> AlbedoScore:
+                 level: float = 0.9, colour: str = "linear") -> AlbedoScore:
     """Score coefficient samples against the true per-vertex diffuse albedo.
 
     Parameters
@@ -148,6 +150,10 @@ def albedo_score(model: MorphableModel, samples: np.ndarray, layout: ParamLayout
         Vertices scored (those seen in the true view).
     level : float
         Central interval probability (0.9: 5 % / 95 %).
+    colour : {"linear", "srgb"}
+        The model's colour space in the fit; ``"srgb"`` scores the decoded samples
+        (:func:`mcmcfit.outputs.albedo_decoding.decoded_albedo_posterior`) against
+        the linear truth.
 
     Returns
     -------
@@ -155,8 +161,9 @@ def albedo_score(model: MorphableModel, samples: np.ndarray, layout: ParamLayout
         ``coverage`` is predictive when the model has a residual variance.
     """
     sel = np.asarray(visible, bool)
-    post = albedo_posterior(_rows_of(model.diffuse, sel),
-                            np.asarray(samples)[:, albedo_columns(layout)], level=level)
+    summarise = decoded_albedo_posterior if colour == "srgb" else albedo_posterior
+    post = summarise(_rows_of(model.diffuse, sel),
+                     np.asarray(samples)[:, albedo_columns(layout)], level=level)
     err = posterior_interval_error(post, np.asarray(true_diffuse)[sel], np.ones(sel.sum(), bool))
     n_samples = int(np.asarray(samples).shape[0])
     return AlbedoScore(err["rmse"], err["coverage"], float(level), n_samples,

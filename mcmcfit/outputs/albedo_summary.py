@@ -7,9 +7,13 @@ parts carry a residual variance, the std and intervals are posterior
 predictive (coefficients + what the model cannot represent; see
 :mod:`mcmcfit.outputs.posterior`) and the coefficient-only ones are kept beside
 them; otherwise they are coefficient-only and say so
-(:func:`albedo_interval_fields`, for ``summary.json``).
+(:func:`albedo_interval_fields`, for ``summary.json``). A model whose colour
+is an sRGB texture (the fit's resolved colour space,
+:func:`albedo_model.io.colour_space.model_colour_space`) is summarised over its
+decoded samples (:mod:`mcmcfit.outputs.albedo_decoding`): always linear albedo.
 
-This module imports :mod:`albedo_model.model`, :mod:`mcmcfit.fitting.result` and
+This module imports :mod:`albedo_model.io.colour_space`, :mod:`albedo_model.model`,
+:mod:`mcmcfit.fitting.result`, :mod:`mcmcfit.outputs.albedo_decoding` and
 :mod:`mcmcfit.outputs.posterior`.
 """
 
@@ -20,8 +24,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from albedo_model.io.colour_space import model_colour_space
 from albedo_model.model import MorphableModel
 from mcmcfit.fitting.result import FitResult
+from mcmcfit.outputs.albedo_decoding import decoded_albedo_posterior
 from mcmcfit.outputs.posterior import AlbedoPosterior, albedo_posterior
 
 __all__ = ["PosteriorAlbedo", "albedo_coefficient_samples", "albedo_interval_fields",
@@ -40,12 +46,16 @@ class PosteriorAlbedo(NamedTuple):
         Vertices seen in the fitted view (best sample).
     n_samples : int
         Coefficient samples summarised.
+    colour : {"linear", "srgb"}
+        The model's colour space in the fit; ``"srgb"``: the summaries are of
+        the decoded samples (linear albedo either way).
     """
 
     diffuse: AlbedoPosterior
     specular: AlbedoPosterior | None
     visible: np.ndarray
     n_samples: int
+    colour: str = "linear"
 
 
 #: Most posterior draws the per-vertex summaries read (evenly spaced through the pooled
@@ -89,19 +99,23 @@ def posterior_albedo(result: FitResult, model: MorphableModel, visible: np.ndarr
     -------
     PosteriorAlbedo
         Predictive std and intervals for the parts with a residual variance
-        (``part.predictive``), coefficient-only ones otherwise.
+        (``part.predictive``), coefficient-only ones otherwise; linear albedo
+        (decoded samples when the fit's colour space is ``"srgb"``).
     """
     coef = albedo_coefficient_samples(result)
     rng = np.random.default_rng(int(result.seed)) if rng is None else rng
-    diffuse = albedo_posterior(model.diffuse, coef[:, :model.diffuse.rank], level=level, rng=rng)
+    colour = model_colour_space(model, getattr(result.config, "model_colour", None)).value
+    summarise = decoded_albedo_posterior if colour == "srgb" else albedo_posterior
+    diffuse = summarise(model.diffuse, coef[:, :model.diffuse.rank], level=level, rng=rng)
     specular = None
     if model.specular is not None:
         if model.shared_albedo:
             spec_coef = coef[:, :model.specular.rank]
         else:  # independent specular coefficients are not sampled: the mean instance
             spec_coef = np.zeros((1, 0))
-        specular = albedo_posterior(model.specular, spec_coef, level=level, rng=rng)
-    return PosteriorAlbedo(diffuse, specular, np.asarray(visible, bool), int(coef.shape[0]))
+        specular = summarise(model.specular, spec_coef, level=level, rng=rng)
+    return PosteriorAlbedo(diffuse, specular, np.asarray(visible, bool), int(coef.shape[0]),
+                           colour)
 
 
 def _rms(a: np.ndarray, sel: np.ndarray | None = None) -> list[float]:

@@ -26,8 +26,8 @@ Files (see the README's "Using it" section):
 ``report.html``                 everything above on one page
 ==============================  ==========================================================
 
-This module imports :mod:`albedo_model` (io.image_io, io.mesh_export, io.rps,
-render.renderer), :mod:`mcmcfit.fitting.result`, :mod:`mcmcfit.targets.landmarks`
+This module imports :mod:`albedo_model` (io.colour_space, io.image_io, io.mesh_export,
+io.rps, render.renderer), :mod:`mcmcfit.fitting.result`, :mod:`mcmcfit.targets.landmarks`
 and the other :mod:`mcmcfit.outputs` modules but accuracy and html_style
 (:mod:`~mcmcfit.outputs.report` when the report is written).
 """
@@ -41,12 +41,14 @@ from pathlib import Path
 
 import numpy as np
 
+from albedo_model.io.colour_space import model_colour_space
 from albedo_model.io.image_io import write_png
 from albedo_model.io.mesh_export import write_mesh
 from albedo_model.io.rps import write_rps
 from albedo_model.render.renderer import Renderer
 from mcmcfit.fitting.result import FitResult
 from mcmcfit.targets.landmarks import target_landmarks
+from mcmcfit.outputs.albedo_decoding import model_colour_record
 from mcmcfit.outputs.albedo_summary import (
     albedo_interval_fields,
     posterior_albedo,
@@ -118,7 +120,10 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     renderer = Renderer(model, specular=cfg.specular, threads=cfg.threads)
     state = renderer.init_state(best)
     rendered = renderer.image(state)
-    fitted = rendered._replace(image=encode_display(rendered.image).astype(np.float32))
+    space = model_colour_space(model, cfg.model_colour)
+    # an sRGB-texture model renders encoded values already (the space the fit compared in)
+    shown = np.clip(rendered.image, 0.0, 1.0) if space.is_srgb else encode_display(rendered.image)
+    fitted = rendered._replace(image=np.asarray(shown, np.float32))
     visible = visible_vertices(renderer, state)
     post = posterior_albedo(result, model, visible)
     write_posterior_npz(out / "posterior.npz", post)
@@ -160,7 +165,8 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     write_mesh(out / "mesh.ply", verts, model.triangles, post.diffuse.mean.astype(np.float64),
                gamma=2.2)
     result.save_chain(out / "chain.h5")
-    write_posterior_nc(out / "posterior.nc", _inference_data(result, loaded, target, clicked))
+    write_posterior_nc(out / "posterior.nc",
+                       _inference_data(result, loaded, target, clicked, space))
     (out / "config.json").write_text(cfg.to_json() + "\n", encoding="utf-8")
 
     truth_error = None
@@ -179,6 +185,7 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
                             inputs={**(inputs or {}), "face_box": None if face_box is None
                                     else list(face_box)},
                             landmark_err=lm_err, albedo=albedo, files=files,
+                            model=model_colour_record(space),
                             truth_error=truth_error,
                             extra_timings={"outputs_s": time.perf_counter() - t0})
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n",
@@ -189,8 +196,12 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     return summary
 
 
-def _inference_data(result: FitResult, loaded, image: np.ndarray, clicked: dict):
-    """Build the fit's ``InferenceData`` (without warm-up records the burn-in is the warm-up)."""
+def _inference_data(result: FitResult, loaded, image: np.ndarray, clicked: dict, space):
+    """Build the fit's ``InferenceData`` (without warm-up records the burn-in is the warm-up).
+
+    ``space`` (the model's colour space) goes into the attrs: the derived
+    ``albedo_mean`` of an sRGB-texture model is in its encoded space.
+    """
     cfg = result.config
     has_warmup = any(getattr(c, "warmup", None) is not None for c in result.chains)
     attrs = {"seed": int(result.seed), "model_sha256": str(loaded.sha256),
@@ -198,7 +209,10 @@ def _inference_data(result: FitResult, loaded, image: np.ndarray, clicked: dict)
              "software": software_versions(),
              "noise_model": {**{k: getattr(cfg, k) for k in _NOISE_FIELDS if hasattr(cfg, k)},
                              **dict(getattr(result, "noise", None) or {})},
-             "config": cfg.to_dict()}
+             "config": cfg.to_dict(), "model_colour": model_colour_record(space)}
+    if space.is_srgb:
+        attrs["albedo_mean_space"] = ("the model's encoded sRGB texture values (a convergence "
+                                      "monitor); posterior.npz holds the decoded linear albedo")
     return inference_data(result.chains, result.layout, result.template, loaded.model,
                           observed={"image": image, "landmarks": clicked}, attrs=attrs,
                           burn_fraction=0.0 if has_warmup else cfg.burn_fraction)

@@ -33,10 +33,10 @@ import numpy as np
 from albedo_model.errors import InputError
 from albedo_model.pca import PCAPart
 
-__all__ = ["AlbedoPosterior", "albedo_posterior", "visible_vertices"]
+__all__ = ["AlbedoPosterior", "albedo_posterior", "row_quantiles", "visible_vertices"]
 
 #: Elements of one block of Monte Carlo draws (draws x rows), about 32 MB of float64.
-_BLOCK_ELEMENTS = 1 << 22
+BLOCK_ELEMENTS = 1 << 22
 
 
 class AlbedoPosterior(NamedTuple):
@@ -77,7 +77,7 @@ class AlbedoPosterior(NamedTuple):
                                residual_std=None)
 
 
-def _quantiles(x: np.ndarray, q: list[float]) -> list[np.ndarray]:
+def row_quantiles(x: np.ndarray, q: list[float]) -> list[np.ndarray]:
     """``np.quantile(x, q, axis=1)`` (linear interpolation) by one partial sort of each row."""
     n = x.shape[1]
     pos = [(n - 1) * p for p in q]
@@ -150,24 +150,24 @@ def albedo_posterior(part: PCAPart, coefficients: np.ndarray, *, level: float = 
     if residual is None:
         for start in range(0, part.dim, block_rows):
             sl = slice(start, start + block_rows)
-            lo[sl], hi[sl] = _quantiles(base[sl, None] + w[sl] @ ct, q)  # (rows, S)
+            lo[sl], hi[sl] = row_quantiles(base[sl, None] + w[sl] @ ct, q)  # (rows, S)
         f32 = lambda a: a.reshape(-1, 3).astype(np.float32)
         return AlbedoPosterior(f32(mean), f32(np.sqrt(var)), f32(lo), f32(hi), float(level))
     r = residual.astype(np.float64)
     rng = np.random.default_rng(0) if rng is None else rng
     reps = max(1, math.ceil(min_draws / c.shape[0]))
-    rows = max(1, min(block_rows, _BLOCK_ELEMENTS // (reps * c.shape[0])))
+    rows = max(1, min(block_rows, BLOCK_ELEMENTS // (reps * c.shape[0])))
     c_lo, c_hi = np.empty(part.dim), np.empty(part.dim)
     for start in range(0, part.dim, rows):
         sl = slice(start, start + rows)
         x = base[sl, None] + w[sl] @ ct                      # (rows, S)
-        c_lo[sl], c_hi[sl] = _quantiles(x, q)
+        c_lo[sl], c_hi[sl] = row_quantiles(x, q)
         # float32 draws: the bounds are stored as float32 and the Monte Carlo error is
         # far above float32 rounding
         draws = rng.standard_normal((x.shape[0], x.shape[1], reps), dtype=np.float32)
         draws *= np.sqrt(r[sl, None, None]).astype(np.float32)
         draws += x[:, :, None]
-        lo[sl], hi[sl] = _quantiles(draws.reshape(x.shape[0], -1), q)
+        lo[sl], hi[sl] = row_quantiles(draws.reshape(x.shape[0], -1), q)
     f32 = lambda a: a.reshape(-1, 3).astype(np.float32)
     return AlbedoPosterior(f32(mean), f32(np.sqrt(var + r)), f32(lo), f32(hi), float(level),
                            coef_std=f32(np.sqrt(var)), coef_lo=f32(c_lo), coef_hi=f32(c_hi),

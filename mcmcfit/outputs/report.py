@@ -162,6 +162,7 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
         ["landmarks", inputs.get("landmarks") or ("face box" if inputs.get("face_box") else "–")],
         ["model", summary.get("model_uri") or "–"],
         ["model sha256", summary.get("model_sha256") or "–"],
+        ["model colour", (summary.get("model") or {}).get("colour_handling") or "–"],
         ["seed", summary.get("seed")],
         ["mcmcfit version", summary.get("version")],
         ["schedule", f"{steps.get('chains')} chain(s) x ({steps.get('landmark')} landmark + "

@@ -70,7 +70,8 @@ def _stage_diag(result: FitResult) -> dict:
 
 def build_summary(result: FitResult, *, model_sha256: str, model_uri: str, inputs: dict,
                   landmark_err: dict | None, albedo: dict, files: list[str],
-                  truth_error: dict | None = None, extra_timings: dict | None = None) -> dict:
+                  truth_error: dict | None = None, extra_timings: dict | None = None,
+                  model: dict | None = None) -> dict:
     """Build the ``summary.json`` dict (JSON-safe: NaN and infinities become null).
 
     Fields: ``format``, ``software`` (versions), ``version`` (mcmcfit), ``seed``,
@@ -92,7 +93,10 @@ def build_summary(result: FitResult, *, model_sha256: str, model_uri: str, input
     ``predictive``, ``interval_kind``, ``residual_variance`` per part with
     ``present`` and ``rms_rgb``, the coefficient-only and predictive mean std:
     :func:`mcmcfit.outputs.albedo_summary.albedo_interval_fields`),
-    ``truth`` (synthetic cases only), ``config`` and ``files`` (the result folder's
+    ``model`` (the model's colour space as the fit read it: ``colour_space``
+    "linear" or "srgb", ``colour_space_source``, ``colour_space_label``,
+    ``colour_handling``: :func:`mcmcfit.outputs.albedo_decoding.model_colour_record`;
+    when given), ``truth`` (synthetic cases only), ``config`` and ``files`` (the result folder's
     files, among them ``chain.h5`` and ``posterior.nc``, the ArviZ ``InferenceData``).
     """
     __version__ = _mcmcfit_version()
@@ -108,6 +112,7 @@ def build_summary(result: FitResult, *, model_sha256: str, model_uri: str, input
         "seed": int(result.seed),
         "model_sha256": model_sha256,
         "model_uri": model_uri,
+        **({"model": model} if model is not None else {}),
         "inputs": inputs,
         "steps": {"landmark": cfg.landmark_steps, "image": cfg.steps, "chains": cfg.chains,
                   "thin": cfg.thin, "stage1_sampler": cfg.stage1},

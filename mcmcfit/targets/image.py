@@ -8,6 +8,13 @@ histogram (built from the linearised target pixels, so that foreground and
 background are densities of the same variable) and for the SH light solver.
 The pixel sigma (0.043 by default) is therefore in linear units.
 
+The one exception is a model whose colour is a gamma-encoded sRGB texture
+(BFM 2017; :func:`albedo_model.io.colour_space.model_colour_space`): its
+colour is taken as the camera's sRGB values, as the reference does, so the
+render is compared with the photograph's encoded values
+(``prepare_image_target(..., colour="srgb")``) and everything above reads
+them instead of the linearised ones.
+
 Background: the reference scores each face pixel against the raw colour
 histogram of the target, ``log(count / total) + 3 log B``. Where the face's own
 colours pile up (the face is a large part of the image and its colours are
@@ -84,17 +91,22 @@ class ImageTarget:
     Attributes
     ----------
     linear : (H, W, 3) float64, host
-        Linearised target.
+        The target in the space the render is compared in: linearised, or
+        with ``colour == "srgb"`` the encoded photograph (clipped to [0, 1]).
     histogram : ColourHistogram
         Background model, built from all pixels of ``linear``.
     arrays : ImageArrays
-        Device copies: linear RGB planes (H, W) float32 and the background log
-        density of every pixel (H, W) float32.
+        Device copies: the RGB planes of ``linear`` (H, W) float32 and the
+        background log density of every pixel (H, W) float32.
+    colour : {"linear", "srgb"}
+        The comparison space: ``"linear"`` (linear sRGB, the default) or
+        ``"srgb"`` (the photograph's encoded values, for sRGB-texture models).
     """
 
     linear: np.ndarray
     histogram: ColourHistogram
     arrays: ImageArrays
+    colour: str = "linear"
 
     @property
     def height(self) -> int:
@@ -108,8 +120,9 @@ class ImageTarget:
 
 
 def prepare_image_target(image: np.ndarray, *, bins: int = 25,
-                         smooth_sigma: float | None = None) -> ImageTarget:
-    """Linearise a photograph and build its background histogram.
+                         smooth_sigma: float | None = None,
+                         colour: str = "linear") -> ImageTarget:
+    """Linearise a photograph (unless ``colour="srgb"``) and build its background histogram.
 
     Parameters
     ----------
@@ -121,18 +134,24 @@ def prepare_image_target(image: np.ndarray, *, bins: int = 25,
         Convolve the histogram with the pixel noise ``N(0, smooth_sigma^2)``
         (:meth:`ColourHistogram.smoothed_log_density`; pass the pixel model's
         sigma). None keeps the raw piecewise-constant histogram (the reference).
+    colour : {"linear", "srgb"}
+        The comparison space: ``"linear"`` linearises the photograph (``x^2.2``);
+        ``"srgb"`` keeps its encoded values (clipped to [0, 1]), for a model
+        whose colour is an sRGB texture.
 
     Raises
     ------
     InputError
-        Wrong shape or non-finite values.
+        Wrong shape, non-finite values or an unknown ``colour``.
     """
     img = np.asarray(image, np.float64)
     if img.ndim != 3 or img.shape[2] != 3 or min(img.shape[:2]) < 1:
         raise InputError(f"target image must have shape (H, W, 3), got {img.shape}")
     if not np.all(np.isfinite(img)):
         raise InputError("target image contains NaN or infinite values")
-    lin = linearise(img)
+    if colour not in ("linear", "srgb"):
+        raise InputError(f"image colour space must be 'linear' or 'srgb', got {colour!r}")
+    lin = linearise(img) if colour == "linear" else np.clip(img, 0.0, 1.0)
     hist = colour_histogram(lin, bins=bins)
     bg = hist.log_density(lin) if smooth_sigma is None else \
         hist.smoothed_log_density(lin, float(smooth_sigma))
@@ -140,7 +159,7 @@ def prepare_image_target(image: np.ndarray, *, bins: int = 25,
         rgb=tuple(jnp.asarray(lin[..., c], jnp.float32) for c in range(3)),
         bg=jnp.asarray(bg, jnp.float32),
     )
-    return ImageTarget(lin, hist, arrays)
+    return ImageTarget(lin, hist, arrays, colour)
 
 
 _DEVICE_FUNCTIONS = {"independent": independent_terms, "collective": collective_terms,

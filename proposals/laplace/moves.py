@@ -285,8 +285,9 @@ class GaussianHMC:
     momentum flip is a volume-preserving involution and the MH test with
     ``exp(-K)`` and the exact ray-cast posterior keeps the posterior. The
     whitening ``u = m + L z`` is a fixed linear map (constant Jacobian). A
-    point whose gradient is not finite ends the trajectory with ratio -inf
-    (the reversed trajectory meets the same point). Gradients at the two ends
+    point outside the parameters' domain or whose density or gradient is not
+    finite (a diverged trajectory) ends it with ratio -inf (a function of the
+    point alone: the reversed trajectory meets the same point). Gradients at the two ends
     are cached by ``params`` object (the next move starts from one of them).
     """
 
@@ -332,15 +333,21 @@ class GaussianHMC:
         grads: list[np.ndarray] = []
 
         def gradient(zz):
-            points.append(c.params_of(a.mean + a.chol_cov @ zz, params))
-            raw = np.asarray(self.grad(points[-1])[1], np.float64)
-            if not np.all(np.isfinite(raw)):
+            uu = a.mean + a.chol_cov @ zz
+            points.append(c.params_of(uu, params) if np.all(np.isfinite(uu)) else params)
+            try:
+                value, raw = self.grad(points[-1])
+            except (ValueError, OverflowError, FloatingPointError):
+                return None  # outside the parameters' domain: a diverged trajectory
+            raw = np.asarray(raw, np.float64)
+            if not (np.isfinite(value) and np.all(np.isfinite(uu)) and np.all(np.isfinite(raw))):
                 return None
             grads.append(raw)
             return a.chol_cov.T @ raw
 
-        end = leapfrog(z, p, a.chol_cov.T @ g_u, gradient, step, np.ones(z.size),
-                       self.n_leapfrog)
+        with np.errstate(all="ignore"):  # a diverging trajectory ends below (-inf)
+            end = leapfrog(z, p, a.chol_cov.T @ g_u, gradient, step, np.ones(z.size),
+                           self.n_leapfrog)
         if end is None:
             self._cache.keep((params, g_u))
             return Move(points[-1], -math.inf, self.touches, self.name, joint=True)

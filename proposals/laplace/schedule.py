@@ -22,17 +22,19 @@ import numpy as np
 from proposals.albedo_solver import AlbedoConditional, AlbedoData
 from proposals.base import Mixture, mixture
 from proposals.laplace.coordinates import SamplingCoordinates
-from proposals.laplace.moves import CrankNicolson, GaussianApproximation, GaussianBlockConditional
+from proposals.laplace.moves import (
+    CoordinateGradient, CrankNicolson, GaussianApproximation, GaussianBlockConditional, GaussianHMC,
+)
 from proposals.laplace.random_walk import GaussianRandomWalk
 from proposals.light_conditional import LightConditional
 from proposals.schedule import Scales
 
 __all__ = ["BLOCK_SHARES", "GAUSSIAN_BLOCKS", "GAUSSIAN_FAMILIES", "GAUSSIAN_STEPS", "GAUSSIAN_TARGETS",
-           "WALK_SCALE", "WIDE_FACTOR", "gaussian_image_proposal", "rho_of", "walk_scale"]
+           "HMC_STEP", "WALK_SCALE", "WIDE_FACTOR", "gaussian_image_proposal", "rho_of", "walk_scale"]
 
 #: The Gaussian moves' families (warm-up adapts one step multiplier each).
 GAUSSIAN_FAMILIES = ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
-                     "geometry-walk", "geometry-wide")
+                     "geometry-walk", "geometry-wide", "hmc")
 
 #: Initial Crank-Nicolson step ``sqrt(1 - rho^2)`` of the Gaussian moves' families (the
 #: warm-up multiplies it by the family's multiplier, at most to 1: an independent draw).
@@ -42,12 +44,16 @@ GAUSSIAN_STEPS = {"pcn": 0.85, "gaussian-geometry": 0.8, "gaussian-albedo": 1.0,
 #: Acceptance rates the warm-up tunes the Gaussian families' steps to (measured on the demo
 #: face: the Crank-Nicolson move's effective samples per step peak near 0.2 acceptance).
 GAUSSIAN_TARGETS = {"pcn": 0.2, "gaussian-geometry": 0.3, "gaussian-albedo": 0.3,
-                    "gaussian-shading": 0.3, "geometry-walk": 0.25, "geometry-wide": 0.25}
+                    "gaussian-shading": 0.3, "geometry-walk": 0.25, "geometry-wide": 0.25,
+                    "hmc": 0.65}
 
 #: Initial step of the geometry's random walk, in conditional sds per coordinate, times
 #: ``1 / sqrt(k)`` for a block of ``k`` coordinates (2.4 / sqrt(k): the optimal walk's
 #: step where the posterior matches the approximation; Roberts, Gelman & Gilks 1997).
 WALK_SCALE = 2.4
+
+#: Initial leapfrog step of the whitened HMC move (whitened units; the warm-up multiplies it).
+HMC_STEP = 0.5
 
 #: Shares of the block moves' top-level weight. The albedo and shading blocks cost a
 #: re-shading (1-2 ms) where a geometry move re-casts the rays (~14 ms at 250^2).
@@ -90,7 +96,9 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
                             light_conditional: LightConditional | None = None,
                             pcn_weight: float = 0.3, block_weight: float = 0.4,
                             albedo_weight: float = 0.2,
-                            light_conditional_weight: float = 0.1) -> Mixture:
+                            light_conditional_weight: float = 0.1,
+                            gradient: CoordinateGradient | None = None, hmc_weight: float = 0.0,
+                            hmc_leapfrog: int = 4) -> Mixture:
     """Build the image-stage proposal of the Gaussian sampler (the default).
 
     Parameters
@@ -112,6 +120,15 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
         moves from the approximation's conditionals (shared as :data:`BLOCK_SHARES`);
         the albedo's and the light's exact conditionals (each rebuilds its linear
         system over the region after a geometry move: 15-30 ms at 250^2).
+    gradient : callable, optional
+        ``gradient(params) -> (log density, gradient in u)`` of the posterior
+        (:func:`mcmcfit.targets.curvature.coordinate_gradient`); with ``hmc_weight > 0``
+        the mixture gets a whitened HMC move of every coordinate
+        (:class:`~proposals.laplace.moves.GaussianHMC`, family ``"hmc"``).
+    hmc_weight : float
+        Top-level weight of the HMC move.
+    hmc_leapfrog : int
+        Leapfrog steps per HMC move (each a ray cast and a gradient).
 
     Returns
     -------
@@ -136,4 +153,9 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
         parts.append((albedo_weight, AlbedoConditional(albedo_data, sigma=pixel_sigma)))
     if light_conditional is not None and light_conditional_weight > 0:
         parts.append((light_conditional_weight, light_conditional))
+    if gradient is not None and hmc_weight > 0:
+        step = HMC_STEP * float(k.get("hmc", 1.0))
+        parts.append((hmc_weight, mixture((1.0, GaussianHMC(coords, approx, gradient, step,
+                                                             hmc_leapfrog, name="hmc")),
+                                          name="hmc")))
     return mixture(*parts, name="image")

@@ -60,11 +60,12 @@ def test_check_cache_passes_over_every_move_kind(case):
 def test_check_cache_passes_over_the_gaussian_sampler(case):
     model, image, clicks = case
     cfg = FitConfig(steps=120, warmup_steps=40, landmark_steps=100, sigma_lm=2.0,
-                    check_cache=True, chains=1, parallel=False, mode_rounds=1, mode_steps=3)
+                    check_cache=True, chains=1, parallel=False, mode_rounds=1, mode_steps=3,
+                    hmc_weight=0.2, hmc_leapfrog=2)
     res = fit(image, clicks, model, config=cfg, seed=11)
     kinds = set(res.acceptance)
     for kind in ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
-                 "geometry-walk", "geometry-wide", "albedo-conditional",
+                 "geometry-walk", "geometry-wide", "hmc", "albedo-conditional",
                  "light-conditional"):
         assert any(k.startswith(kind) for k in kinds), (kind, sorted(kinds))
     assert sum(s.accepted for s in res.acceptance.values()) > 0

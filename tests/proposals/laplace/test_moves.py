@@ -218,6 +218,25 @@ def test_hmc_keeps_the_target(seed):
     assert target.calls <= 3 * 5000 + 1  # one gradient per leapfrog step, the ends cached
 
 
+@pytest.mark.parametrize("failure", ["raises", "inf"])
+def test_hmc_trajectory_leaving_the_domain_is_refused(failure):
+    c = _coords()
+    target = Target(c, 1)
+    start = c.template
+
+    def grad(params):
+        if params is start:
+            return target.grad(params)
+        if failure == "raises":
+            raise ValueError("math domain error")  # e.g. a log of a negative distance
+        return -np.inf, np.full(c.size, np.nan)
+
+    move = GaussianHMC(c, target.approximation(1), grad, step=0.6, n_leapfrog=3)
+    for seed in SEEDS:
+        out = move(np.random.default_rng(seed), ProposalState(start))
+        assert out.log_q_ratio == -np.inf
+
+
 class FrozenHMC:
     """Negative control: every kick of a trajectory uses the gradient at its start."""
 
