@@ -22,7 +22,7 @@ __all__ = ["main", "build_parser"]
 
 #: Command modules under ``mcmcfit.commands``, in help order.
 COMMAND_MODULES = ("model", "params", "render", "landmarks", "fit", "demo", "pipeline", "batch",
-                   "bench")
+                   "bench", "evaluate")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -78,6 +78,7 @@ LAYERS: dict[str, list[list[str]]] = {
         ["mcmcfit.outputs"],
         ["mcmcfit.jobs"],
         ["mcmcfit.batch", "mcmcfit.bench"],
+        ["mcmcfit.evaluation"],
         ["mcmcfit.commands"],
         ["mcmcfit"],
     ],

@@ -18,6 +18,8 @@ batch
     ``mcmcfit batch`` and ``mcmcfit batch-report``.
 bench
     ``mcmcfit bench``: the ``render`` and ``fit`` benchmarks.
+evaluate
+    ``mcmcfit evaluate``: the paper's held-out experiment (Table 1).
 subcommands
     ``add_action``: what the ``register_<action>`` functions of a command group share.
 

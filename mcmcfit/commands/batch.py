@@ -13,7 +13,7 @@ from pathlib import Path
 from albedo_model.errors import InputError
 from mcmcfit.commands.fit import add_schedule_arguments, config_from_args
 
-__all__ = ["register", "run_batch_command", "run_report_command"]
+__all__ = ["positive_int", "register", "run_batch_command", "run_report_command"]
 
 _BATCH_HELP = """\
 Fit every image of INPUT (a folder walked recursively for .jpg/.jpeg/.png, or a
@@ -45,7 +45,8 @@ so every engine gives the same numbers.
 """
 
 
-def _positive(text: str) -> int:
+def positive_int(text: str) -> int:
+    """Parse a command-line integer >= 1 (an ``argparse`` type)."""
     try:
         v = int(text)
     except ValueError:
@@ -77,9 +78,9 @@ def register(subparsers) -> None:
     p.add_argument("--model", default="default-face",
                    help="model file (.h5), 'default-face' (default: the face-only crop of the "
                    "built-in model) or 'default' (the whole head)")
-    p.add_argument("--workers", type=_positive, metavar="N",
+    p.add_argument("--workers", type=positive_int, metavar="N",
                    help="worker processes (default: the usable cores)")
-    p.add_argument("--threads-per-worker", type=_positive, metavar="T",
+    p.add_argument("--threads-per-worker", type=positive_int, metavar="T",
                    help="threads per worker (default: cores // workers, at least 1; "
                    "1 with --scheduler)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, e.g. tcp://host:8786")

@@ -54,7 +54,7 @@ class FitConfig:
         other in this process (the same chains, only slower).
     warmup_steps : int or None
         Image-stage warm-up steps per chain (step sizes adapted; never part of
-        the posterior). None: 500 for the Gaussian sampler (after its climb to
+        the posterior). None: 1000 for the Gaussian sampler (after its climb to
         the mode), 30 % of ``steps`` for the random-walk one (which measures the
         noise model in it; with 0 the configured noise model is kept).
     adapt_window : int
@@ -215,8 +215,8 @@ class FitConfig:
     pcn_weight: float = 0.4
     block_weight: float = 0.5
     conditional_weight: float = 0.1
-    hmc_weight: float = 0.0
-    hmc_leapfrog: int = 4
+    hmc_weight: float = 0.3
+    hmc_leapfrog: int = 6
     hmc_triangles: str = "cast"
     stop_when_converged: bool = True
     time_budget: float | None = None
@@ -320,11 +320,11 @@ class FitConfig:
 
     @property
     def warmup(self) -> int:
-        """Warm-up steps per chain (``warmup_steps``; None: 500 Gaussian, 30 % of ``steps`` random walk)."""
+        """Warm-up steps per chain (``warmup_steps``; None: 1000 Gaussian, 30 % of ``steps`` random walk)."""
         if self.warmup_steps is not None:
             return self.warmup_steps
         if self.sampler != "random-walk":
-            return min(500, self.steps)
+            return min(1000, self.steps)
         return (self.steps * 3) // 10
 
     def to_dict(self) -> dict:

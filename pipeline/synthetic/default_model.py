@@ -31,7 +31,8 @@ from albedo_model.default_model import BUILD_VERSION, default_model_path
 from albedo_model.model import MorphableModel
 from albedo_model.pca import PCAPart
 
-__all__ = ["DEFAULT_SEED", "DEFAULT_SUBJECTS", "build_default_model", "ensure_default_model"]
+__all__ = ["DEFAULT_RANKS", "DEFAULT_SEED", "DEFAULT_SUBJECTS", "build_default_model",
+           "build_model_from_subjects", "ensure_default_model"]
 
 DEFAULT_SEED = 2020
 DEFAULT_SUBJECTS = 60
@@ -77,13 +78,6 @@ def build_default_model(
         metadata (``synthetic``, colour space, gamma, seed; the provenance
         records the residual variance's estimate and its RMS per channel).
     """
-    from pipeline.modelling.pca_variants import build_albedo_parts
-    from pipeline.modelling.residual_variance import (
-        attach_residual_variance,
-        loo_residual_variance,
-        residual_rms_per_channel,
-    )
-    from pipeline.lightstage.colour import camera_colour
     from pipeline.synthetic.head.shape_model import build_expression_model, build_shape_model
     from pipeline.synthetic.subjects import make_subjects
     from pipeline.synthetic.head.template_head import build_template_head
@@ -96,9 +90,56 @@ def build_default_model(
     expression = build_expression_model(head)
     say(_STAGES[2])
     subjects = make_subjects(head, n_subjects, seed)
+    say(_STAGES[3])
+    return build_model_from_subjects(head, shape, expression, subjects, seed=seed,
+                                     albedo_rank=albedo_rank)
+
+
+def build_model_from_subjects(
+    head,
+    shape: PCAPart,
+    expression: PCAPart,
+    subjects,
+    *,
+    seed: int,
+    albedo_rank: int = DEFAULT_RANKS["albedo"],
+    builder: str = "pipeline.synthetic.default_model",
+    extra_provenance: dict | None = None,
+) -> MorphableModel:
+    """Build the albedo model of ``subjects`` on the template ``head`` (the default model's recipe).
+
+    Parameters
+    ----------
+    head : TemplateHead
+        Template head (vertices, triangles, symmetry, landmarks).
+    shape, expression : PCAPart
+        Shape and expression parts of the model.
+    subjects : sequence of Subject
+        Training subjects (their ``diffuse`` and ``specular`` maps, linear sRGB).
+    seed : int
+        Population seed (recorded in the provenance).
+    albedo_rank : int
+        Albedo components kept.
+    builder : str
+        Name recorded as the provenance's ``builder``.
+    extra_provenance : dict, optional
+        More provenance entries (e.g. the held-out subjects).
+
+    Returns
+    -------
+    MorphableModel
+        As :func:`build_default_model` describes.
+    """
+    from pipeline.modelling.pca_variants import build_albedo_parts
+    from pipeline.modelling.residual_variance import (
+        attach_residual_variance,
+        loo_residual_variance,
+        residual_rms_per_channel,
+    )
+    from pipeline.lightstage.colour import camera_colour
+
     diffuse = np.stack([s.diffuse for s in subjects])
     specular = np.stack([s.specular for s in subjects])
-    say(_STAGES[3])
     parts = build_albedo_parts(diffuse, specular, head.symmetry, variant="transferred",
                                rank=albedo_rank)
     residual = loo_residual_variance(diffuse, specular, head.symmetry, variant="transferred",
@@ -106,8 +147,8 @@ def build_default_model(
     parts = attach_residual_variance(parts, residual)
     verts = head.vertices.astype(np.float32)
     provenance = {
-        "builder": "pipeline.synthetic.default_model", "build_version": BUILD_VERSION, "seed": seed,
-        "subjects": n_subjects, "variant": "transferred", "symmetry_augmented": True,
+        "builder": builder, "build_version": BUILD_VERSION, "seed": seed,
+        "subjects": len(subjects), "variant": "transferred", "symmetry_augmented": True,
         "camera_colour": camera_colour().metadata(),
         "residual_variance": {
             "estimate": "leave-one-out over the subjects (each held out with its mirror image), "
@@ -119,6 +160,7 @@ def build_default_model(
             "rms_specular_rgb": [round(float(v), 6)
                                  for v in residual_rms_per_channel(residual.specular)],
         },
+        **(extra_provenance or {}),
     }
     metadata = {
         "synthetic": "true",

@@ -337,7 +337,7 @@ class GaussianHMC:
             points.append(c.params_of(uu, params) if np.all(np.isfinite(uu)) else params)
             try:
                 value, raw = self.grad(points[-1])
-            except (ValueError, OverflowError, FloatingPointError):
+            except (InputError, ValueError, ArithmeticError):
                 return None  # outside the parameters' domain: a diverged trajectory
             raw = np.asarray(raw, np.float64)
             if not (np.isfinite(value) and np.all(np.isfinite(uu)) and np.all(np.isfinite(raw))):

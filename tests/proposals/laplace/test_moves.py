@@ -218,7 +218,7 @@ def test_hmc_keeps_the_target(seed):
     assert target.calls <= 3 * 5000 + 1  # one gradient per leapfrog step, the ends cached
 
 
-@pytest.mark.parametrize("failure", ["raises", "inf"])
+@pytest.mark.parametrize("failure", ["raises", "invalid", "inf"])
 def test_hmc_trajectory_leaving_the_domain_is_refused(failure):
     c = _coords()
     target = Target(c, 1)
@@ -229,6 +229,8 @@ def test_hmc_trajectory_leaving_the_domain_is_refused(failure):
             return target.grad(params)
         if failure == "raises":
             raise ValueError("math domain error")  # e.g. a log of a negative distance
+        if failure == "invalid":
+            raise InputError("vertices contain NaN or inf")  # the renderer's input check
         return -np.inf, np.full(c.size, np.nan)
 
     move = GaussianHMC(c, target.approximation(1), grad, step=0.6, n_leapfrog=3)
