@@ -198,6 +198,9 @@ def step(rng: np.random.Generator, state: ChainState, target: Target, proposal: 
     move = proposal(rng, state)
     if move.touched == Block.NONE:
         return state, StepInfo(move.name, False, IDENTITY, 0.0, Block.NONE)
+    if move.log_q_ratio == -math.inf:  # refused by the proposal itself (e.g. a diverged trajectory)
+        stage = REJECTED_JOINT if move.joint else REJECTED_LANDMARKS
+        return state, StepInfo(move.name, False, stage, -math.inf, move.touched)
     new = move.params
     if move.joint:
         return _joint_step(rng, state, target, move, image=image)

@@ -348,7 +348,7 @@ class GaussianHMC:
         with np.errstate(all="ignore"):  # a diverging trajectory ends below (-inf)
             end = leapfrog(z, p, a.chol_cov.T @ g_u, gradient, step, np.ones(z.size),
                            self.n_leapfrog)
-        if end is None:
+        if end is None:  # refused: the kernel rejects a -inf move without evaluating its point
             self._cache.keep((params, g_u))
             return Move(points[-1], -math.inf, self.touches, self.name, joint=True)
         z_new, p_new, _ = end

@@ -18,7 +18,8 @@ from mcmcfit.fitting.config import FitConfig
 from mcmcfit.targets.landmarks import LandmarkGeometry
 from mcmcfit.sampling.param_vector import ParamLayout
 from mcmcfit.sampling.kernel import (
-    IDENTITY, REJECTED_IMAGE, REJECTED_LANDMARKS, REJECTED_PRIOR, init, run, step,
+    IDENTITY, REJECTED_IMAGE, REJECTED_JOINT, REJECTED_LANDMARKS, REJECTED_PRIOR, init, run,
+    step,
 )
 from proposals.base import mixture
 from proposals.pose import FocalScaling, Rotation
@@ -154,6 +155,33 @@ def test_identity_moves_and_minus_infinity_states():
     target.log_lik_image = lambda rs: -math.inf
     _s2, info = step(np.random.default_rng(3), stuck, target, Rotation("yaw", 1e-6))
     assert info.rejected_by != REJECTED_IMAGE
+
+
+@pytest.mark.parametrize("joint", [True, False])
+def test_a_move_refused_by_its_proposal_evaluates_nothing(joint):
+    """A -inf proposal ratio (a diverged HMC trajectory) is rejected before any factor is read."""
+    from proposals.base import Move
+
+    class Refused:
+        name, touches = "refused", Block.POSE
+
+        def __call__(self, rng, state):
+            bad = state.params._replace(pose=state.params.pose._replace(yaw=math.nan))
+            return Move(bad, -math.inf, Block.POSE, self.name, joint=joint)
+
+    target = ToyTarget()
+    s0 = init(fit_to_image_size(default_square(), 8, 8), target)
+
+    def explode(*_):
+        raise AssertionError("a refused move was evaluated")
+
+    target.log_lik_landmarks = target.log_prior = explode
+    rng = np.random.default_rng(0)
+    s1, info = step(rng, s0, target, Refused())
+    assert s1 is s0 and not info.accepted and target.renders == 0
+    assert info.rejected_by == (REJECTED_JOINT if joint else REJECTED_LANDMARKS)
+    # no uniform is drawn for it
+    assert rng.random() == np.random.default_rng(0).random()
 
 
 def test_recorder_thins_and_tracks_best():
