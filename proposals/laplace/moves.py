@@ -334,13 +334,15 @@ class GaussianHMC:
 
         def gradient(zz):
             uu = a.mean + a.chol_cov @ zz
-            points.append(c.params_of(uu, params) if np.all(np.isfinite(uu)) else params)
+            if not np.all(np.isfinite(uu)):
+                return None
+            points.append(c.params_of(uu, params))
             try:
                 value, raw = self.grad(points[-1])
             except (InputError, ValueError, ArithmeticError):
                 return None  # outside the parameters' domain: a diverged trajectory
             raw = np.asarray(raw, np.float64)
-            if not (np.isfinite(value) and np.all(np.isfinite(uu)) and np.all(np.isfinite(raw))):
+            if not (np.isfinite(value) and np.all(np.isfinite(raw))):
                 return None
             grads.append(raw)
             return a.chol_cov.T @ raw
@@ -350,7 +352,7 @@ class GaussianHMC:
                            self.n_leapfrog)
         if end is None:  # refused: the kernel rejects a -inf move without evaluating its point
             self._cache.keep((params, g_u))
-            return Move(points[-1], -math.inf, self.touches, self.name, joint=True)
+            return Move(params, -math.inf, self.touches, self.name, joint=True)
         z_new, p_new, _ = end
         self._cache.keep((params, g_u), (points[-1], grads[-1]))
         u_new = a.mean + a.chol_cov @ z_new
