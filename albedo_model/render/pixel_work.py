@@ -131,8 +131,11 @@ def packed_camera(p: RenderParameter) -> np.ndarray:
     fx, fy = pixel_scale(p.camera, p.image_size)
     cx, cy = principal_point_px(p.camera, p.image_size)
     r, _ = eye_from_world(p.view)
-    return np.concatenate([[fx, fy, cx, cy, float(bool(p.camera.orthographic))],
-                           r.reshape(-1)]).astype(np.float32)
+    # a far proposal (an optimiser's trial step, a diverging trajectory) can give a focal
+    # length beyond float32: it becomes inf, its render non-finite and the point is refused
+    with np.errstate(over="ignore"):
+        return np.concatenate([[fx, fy, cx, cy, float(bool(p.camera.orthographic))],
+                               r.reshape(-1)]).astype(np.float32)
 
 
 def _n_pixels(state: RenderState) -> int:

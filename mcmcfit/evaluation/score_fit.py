@@ -7,10 +7,11 @@ model (its mean, decoded when its colour is an sRGB texture), and returns
 the scores of :func:`mcmcfit.evaluation.scores.albedo_scores` for the
 diffuse and (when both have one) specular albedo, with the fit's R-hat,
 ESS, convergence verdict, wall time, seed, model hash and version, and the
-case's projection floor.
+case's projection floor, and the accuracy at each of the fit's convergence
+checks (:mod:`mcmcfit.evaluation.checkpoints`).
 
 This module imports :mod:`albedo_model` (colour space, regions) and
-:mod:`mcmcfit.evaluation.scores`.
+:mod:`mcmcfit.evaluation` (checkpoints, scores).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mcmcfit.evaluation.checkpoints import checkpoint_scores
 from mcmcfit.evaluation.scores import albedo_scores
 
 __all__ = ["model_mean_linear", "score_fit"]
@@ -72,7 +74,9 @@ def score_fit(fit_dir: Path, truth_file: Path, model, colour: str,
     dict
         ``diffuse`` and ``specular`` (or None) scores, and the fit's record
         (``converged``, ``max_rhat``, ``min_ess_bulk``, ``min_ess_tail``,
-        ``wall_s``, ``seed``, ``model_sha256``, ``version``, ``checks``).
+        ``wall_s``, ``seed``, ``model_sha256``, ``version``, ``checks``), and
+        ``checkpoints``: the diffuse MSE and 90 % coverage at each convergence
+        check (:func:`mcmcfit.evaluation.checkpoints.checkpoint_scores`).
     """
     fit_dir = Path(fit_dir)
     summary = json.loads((fit_dir / "summary.json").read_text(encoding="utf-8"))
@@ -88,4 +92,6 @@ def score_fit(fit_dir: Path, truth_file: Path, model, colour: str,
             std = post.get(f"{part}_std")
             out[part] = albedo_scores(post[mean_key], std, truth[part], visible, model_mean,
                                       regions=regions if part == "diffuse" else None)
+    out["checkpoints"] = checkpoint_scores(fit_dir, summary, model, truth["diffuse"], visible,
+                                           colour)
     return out

@@ -90,6 +90,12 @@ class FitConfig:
         (``"mode"``: a smooth surrogate, no ray cast per leapfrog step). Either
         is a function of the position alone, so the move stays exact; the
         acceptance test uses the exact ray-cast posterior.
+    widen : bool
+        Gaussian sampler: at 60 % of the warm-up, widen the Laplace
+        approximation the moves whiten with along the (at most 4) directions
+        where the chains' warm-up draws are clearly wider
+        (:func:`proposals.laplace.widening.widened_by_draws`; the rest of the
+        warm-up re-adapts the step sizes, the kept draws see it frozen).
     stop_when_converged : bool
         End the image stage at the first check where every monitored quantity
         has rank-normalised split R-hat < 1.01 and bulk- and tail-ESS >= 400.
@@ -218,6 +224,7 @@ class FitConfig:
     hmc_weight: float = 0.3
     hmc_leapfrog: int = 6
     hmc_triangles: str = "cast"
+    widen: bool = False
     stop_when_converged: bool = True
     time_budget: float | None = None
     noise: str = "estimated"

@@ -186,7 +186,13 @@ def _drive(pool, cfg: FitConfig, layout: ParamLayout, t_start: float,
     if cfg.sampler != "random-walk":
         noise = _prepare_gaussian(pool, cfg, stopping)
         if warm:
-            pool.call("warmup", warm, window=cfg.adapt_window, adapt=cfg.adapt)
+            first = (warm * 3) // 5 if cfg.widen and cfg.adapt else warm
+            pool.call("warmup", first, window=cfg.adapt_window, adapt=cfg.adapt)
+            if first < warm:
+                _report(progress, "image", k, first, total)
+                draws = pool.call("warmup_draws", 2.0 / 3.0)
+                stopping["widening"] = pool.call("widen", draws)
+                pool.call("warmup", warm - first, window=cfg.adapt_window, adapt=cfg.adapt)
             _report(progress, "image", k, warm, total)
     else:
         phases = cfg.noise_updates + 1 if cfg.noise == "estimated" and warm > 0 else 1

@@ -12,7 +12,10 @@ them; the driver, :mod:`mcmcfit.fitting.fit`, calls them in lockstep):
    the driver takes the region and noise model of the best chain's mode and
    sets them on every chain (one posterior for all), which climb again;
 3. :meth:`~GaussianPhases.prepare_gaussian` -- the Laplace approximation at
-   the mode, the moves built on it, the chain started from a draw of it.
+   the mode, the moves built on it, the chain started from a draw of it;
+4. optionally (``widen``), during the warm-up, :meth:`~GaussianPhases.warmup_draws`
+   and :meth:`~GaussianPhases.widen` -- the approximation widened where the
+   chains' warm-up draws are wider (:mod:`proposals.laplace.widening`).
 
 Helpers:
 
@@ -28,7 +31,7 @@ Helpers:
 This module imports :mod:`albedo_model` (camera, params, scene_vector, render),
 :mod:`mcmcfit.fitting` (mode, problem), :mod:`mcmcfit.proposal_data.face_pixels`,
 :mod:`mcmcfit.sampling.kernel`, :mod:`mcmcfit.targets` (curvature, noise_model) and
-:mod:`proposals.laplace` (coordinates, schedule).
+:mod:`proposals.laplace` (coordinates, schedule, widening).
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.laplace.coordinates import SamplingCoordinates
 from proposals.laplace.schedule import GAUSSIAN_BLOCKS
+from proposals.laplace.widening import widened_by_draws
 
 __all__ = ["ADOPT_GAP", "START_ERODE", "GaussianPhases", "appearance_coordinates", "recentred",
            "region_and_noise", "sampling_coordinates"]
@@ -117,7 +121,7 @@ class GaussianPhases:
 
     Reads the session's ``problem``, ``cfg``, ``rng``, ``posterior`` and
     ``state``, and sets ``coords``, ``mode``, ``region``, ``approx`` (and
-    ``posterior``, ``state``); ``_build_data`` and ``_build_proposal`` are the
+    ``posterior``, ``state``); ``_warm``, ``_build_data`` and ``_build_proposal`` are the
     session's.
     """
 
@@ -266,3 +270,33 @@ class GaussianPhases:
         if not np.isfinite(self.state.log_posterior):
             self.state = init(self.mode.params, self.posterior.face, image=True)
         return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size}
+
+    def warmup_draws(self, fraction: float = 0.5) -> np.ndarray:
+        """Return the last ``fraction`` of the warm-up's recorded draws in the sampling coordinates (n, d)."""
+        if self._warm is None or self.coords is None:
+            return np.zeros((0, 0 if self.coords is None else self.coords.size))
+        rec = self._warm.record()
+        tail = rec.samples[int(rec.samples.shape[0] * (1.0 - fraction)):]
+        layout, base = self.problem.layout, self.mode.params
+        return np.array([self.coords.u_of(layout.from_vector(v, base)) for v in tail])
+
+    def widen(self, draws: list[np.ndarray]) -> dict:
+        """Widen the Gaussian approximation where the warm-up ``draws`` (one array per chain) are wider.
+
+        See :func:`proposals.laplace.widening.widened_by_draws`; the moves are
+        rebuilt on the widened approximation (their step multipliers are
+        adapted again by the rest of the warm-up).
+
+        Returns
+        -------
+        dict
+            ``ratios`` (variance ratios of the widened directions), ``largest``
+            (largest whitened eigenvalue), ``edge`` (the noise edge), ``n_draws``.
+        """
+        if self.approx is None:
+            return {"ratios": [], "largest": None, "edge": None, "n_draws": 0}
+        found = widened_by_draws(self.approx, [np.asarray(d) for d in draws])
+        self.approx = found.approx
+        self._build_proposal()
+        return {"ratios": [float(r) for r in found.ratios], "largest": found.largest,
+                "edge": found.edge, "n_draws": found.n_draws}

@@ -48,6 +48,13 @@ def test_small_configuration_writes_table_one(small_eval, capsys):
         assert r["projection_floor"]["diffuse"] > 0
         assert set(r["diffuse"]["coverage"]) == {"0.5", "0.8", "0.9", "0.95"}
         assert r["diffuse"]["regions"]
+        # accuracy at the fit's convergence checks: the last one scores (a thinned set of)
+        # the same draws as the final row, at the wall time of that check
+        pts = r["checkpoints"]
+        assert [p["kept_steps"] for p in pts] == [c["kept_steps"] for c in r["checks"]]
+        assert pts and pts[-1]["seconds"] <= r["wall_s"]
+        assert pts[-1]["mse"] == pytest.approx(r["diffuse"]["mse"], rel=0.15)
+        assert 0.0 <= pts[-1]["coverage_90"] <= 1.0
     (row,) = results["table"]
     assert (row["scene"], row["model"], row["n"], row["failed"]) == ("ambient", "intrinsic", 2, 0)
     # the fit recovers more of the held-out albedo than the model mean does

@@ -27,6 +27,25 @@ def test_matches_brute_force_over_instances():
     assert post.mean.shape == (40, 3) and post.mean.dtype == np.float32
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_bounds_from_thinned_draws_match_the_analytic_quantiles(seed):
+    """20,000 Gaussian draws, bounds read from 4,000 of them: within 0.1 sd of mean -+ 1.645 sd."""
+    p = part(n=60, k=4, seed=seed)
+    rng = np.random.default_rng(10 + seed)
+    samples = rng.normal(0.3, 0.7, size=(20000, 4))
+    post = albedo_posterior(p, samples, level=0.9)
+    w = p.scaled_basis
+    mean = (p.mean + w @ np.full(4, 0.3)).reshape(-1, 3)
+    sd = (0.7 * np.sqrt((w * w).sum(1))).reshape(-1, 3)
+    np.testing.assert_allclose(post.std, sd, rtol=0.03)  # every draw: exact up to sampling
+    z = 1.6448536
+    assert np.max(np.abs(post.lo - (mean - z * sd)) / sd) < 0.1
+    assert np.max(np.abs(post.hi - (mean + z * sd)) / sd) < 0.1
+    # reading all 20,000 draws gives the same bounds to Monte Carlo error
+    full = albedo_posterior(p, samples, level=0.9, max_draws=20000)
+    assert np.max(np.abs(full.lo - post.lo) / sd) < 0.1
+
+
 def test_single_sample_has_zero_width():
     p = part()
     post = albedo_posterior(p, np.ones((1, 5)))

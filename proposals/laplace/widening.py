@@ -1,0 +1,125 @@
+"""The Laplace approximation widened where the warm-up's draws are wider: a low-rank metric adaptation.
+
+The Gaussian moves (:mod:`proposals.laplace.moves`) whiten the posterior with
+its Laplace approximation ``N(m, L L^T)``. Where the posterior is wider than
+the approximation along a few directions (a Gauss-Newton precision at the mode
+overstates the curvature of a nearly flat valley, e.g. face size against
+focal length and distance), every move crawls along them: an HMC trajectory
+of whitened length ``T`` turns by only ``T / s`` radians in a direction of sd
+``s``, so draws there are correlated across many moves.
+
+:func:`widened_by_draws` measures the warm-up draws' covariance in the
+approximation's whitened coordinates ``z = L^-1 (u - m)``, keeps the
+eigen-directions whose variance stands clear of what sampling noise alone
+gives a ``d``-dimensional identity covariance (the Marchenko-Pastur edge
+``(1 + sqrt(d / n))^2``, Baik, Ben Arous & Peche 2005 for a detectable spike),
+and returns the approximation with those directions' variances set to the
+measured ones (capped). All other directions keep the Laplace approximation:
+a full sample covariance from a few hundred correlated draws in ~130
+dimensions would be mostly noise.
+
+Used once, during the warm-up; the approximation is then frozen for the kept
+draws, so the kept chain stays time-homogeneous.
+
+This module imports :mod:`albedo_model.errors` and :mod:`proposals.laplace.moves`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from albedo_model.errors import InputError
+from proposals.laplace.moves import GaussianApproximation
+
+__all__ = ["MAX_DIRECTIONS", "MAX_RATIO", "Widening", "widened_by_draws"]
+
+#: At most this many directions are widened.
+MAX_DIRECTIONS = 4
+#: A direction's variance ratio is capped here (a far-out warm-up excursion is not the posterior).
+MAX_RATIO = 9.0
+#: A direction is widened only when its ratio exceeds this factor times the noise edge.
+MARGIN = 1.2
+
+
+class Widening(NamedTuple):
+    """What :func:`widened_by_draws` found.
+
+    Attributes
+    ----------
+    approx : GaussianApproximation
+        The widened approximation (the input when nothing was widened).
+    ratios : (k,) float
+        Variance ratios (draws / approximation) of the widened directions.
+    directions : (d, k) float
+        Their unit vectors in the approximation's whitened coordinates.
+    largest : float
+        The largest eigenvalue of the draws' whitened covariance.
+    edge : float
+        The noise edge the eigenvalues were compared with.
+    n_draws : int
+    """
+
+    approx: GaussianApproximation
+    ratios: np.ndarray
+    directions: np.ndarray
+    largest: float
+    edge: float
+    n_draws: int
+
+
+def widened_by_draws(approx: GaussianApproximation, draws: list[np.ndarray] | np.ndarray, *,
+                     effective_fraction: float = 0.25,
+                     max_directions: int = MAX_DIRECTIONS) -> Widening:
+    """Return ``approx`` widened along the directions where ``draws`` are wider.
+
+    Parameters
+    ----------
+    approx : GaussianApproximation
+        ``N(m, L L^T)`` in the sampling coordinates.
+    draws : (n, d) array or list of such arrays
+        Warm-up draws in the same coordinates, one array per chain; each is
+        centred on its own mean (chains with slightly different modes add no
+        spread).
+    effective_fraction : float in (0, 1]
+        Effective draws per draw assumed for the noise edge (correlated draws
+        spread the noise eigenvalues as fewer independent ones would).
+    max_directions : int
+
+    Returns
+    -------
+    Widening
+
+    Raises
+    ------
+    InputError
+        Draws of the wrong dimension, not finite, or fewer than 2 per chain.
+    """
+    parts = [np.asarray(d, np.float64) for d in (draws if isinstance(draws, list) else [draws])]
+    d = approx.size
+    for p in parts:
+        if p.ndim != 2 or p.shape[1] != d or p.shape[0] < 2 or not np.all(np.isfinite(p)):
+            raise InputError(f"widening needs finite (n >= 2, {d}) draws per chain; "
+                             f"got {p.shape}")
+    if not 0.0 < effective_fraction <= 1.0:
+        raise InputError(f"effective_fraction must be in (0, 1], got {effective_fraction!r}")
+    centred = np.concatenate([p - p.mean(axis=0) for p in parts])
+    n = centred.shape[0] - len(parts)  # degrees of freedom after the per-chain means
+    z = np.linalg.solve(approx.chol_cov, centred.T)  # (d, N) whitened
+    cov = (z @ z.T) / max(1, n)
+    values, vectors = np.linalg.eigh(0.5 * (cov + cov.T))
+    n_eff = max(1.0, effective_fraction * n)
+    edge = (1.0 + math.sqrt(d / n_eff)) ** 2
+    keep = [i for i in range(d - 1, -1, -1) if values[i] > MARGIN * edge][:max_directions]
+    if not keep:
+        return Widening(approx, np.zeros(0), np.zeros((d, 0)), float(values[-1]), edge, n)
+    ratios = np.minimum(values[keep], MAX_RATIO)
+    v = vectors[:, keep]
+    # Covariance L (I + V (r - 1) V^T) L^T; its precision is
+    # P + L^-T V (1/r - 1) V^T L^-1 with P = L^-T L^-1 the approximation's.
+    w = np.linalg.solve(approx.chol_cov.T, v)  # L^-T V
+    precision = approx.precision + (w * (1.0 / ratios - 1.0)) @ w.T
+    return Widening(GaussianApproximation(approx.mean, 0.5 * (precision + precision.T)), ratios,
+                    v, float(values[-1]), edge, n)
