@@ -82,11 +82,13 @@ def test_a_failing_worker_raises_with_its_traceback(case):
 def test_widening_splits_the_warmup_and_is_recorded(case):
     """``widen``: at 60 % of the warm-up every chain widens its approximation from the pooled draws."""
     model, image, clicks = case
-    res = fit(image, clicks, model, config=_cfg(parallel=True, widen=True), seed=5)
+    cfg = _cfg(parallel=False, widen=True, steps=50, warmup_steps=100, check_every=50,
+               landmark_steps=100)
+    res = fit(image, clicks, model, config=cfg, seed=5)
     found = res.stopping["widening"]
     assert len(found) == 2
     for f in found:
         assert f["n_draws"] > 0 and f["edge"] > 1.0
         assert all(1.0 < r <= 9.0 for r in f["ratios"])
     for c in res.chains:
-        assert c.warmup.steps == 200 and c.stage2.steps == 200
+        assert c.warmup.steps == 100 and c.stage2.steps == 50
