@@ -11,8 +11,8 @@ and the first n image steps of every chain (the time a fit with
 from the samples kept up to step n (after the configured burn-in fraction).
 
 This module imports :mod:`albedo_model.model`, :mod:`mcmcfit.fitting` (config, fit,
-result), :mod:`mcmcfit.jobs.synthetic_case` and :mod:`mcmcfit.outputs.accuracy`;
-writing a file imports :mod:`albedo_model.io.atomic`.
+result), :mod:`mcmcfit.jobs.synthetic_case`, :mod:`mcmcfit.outputs.accuracy` and
+:mod:`mcmcfit.sampling.chain`; writing a file imports :mod:`albedo_model.io.atomic`.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from mcmcfit.outputs.accuracy import albedo_score, pose_error_deg
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.fitting.result import FitResult
 from mcmcfit.jobs.synthetic_case import SyntheticCase, synthetic_case
+from mcmcfit.sampling.chain import stacked_samples
 
 __all__ = ["REFERENCE_SECONDS", "FitBench", "format_fit_bench", "plot_fit_bench",
            "proposal_kind", "run_fit_bench"]
@@ -102,11 +103,8 @@ def accuracy_curve(result: FitResult, model: MorphableModel, case: SyntheticCase
     burn = result.config.burn_fraction
     out = []
     for n in sorted({int(c) for c in checkpoints if 0 < int(c) <= result.config.steps}):
-        pooled = []
-        for rec in recs:
-            kept = rec.samples[rec.sample_step < n]
-            pooled.append(kept[int(burn * kept.shape[0]):])
-        samples = np.concatenate(pooled) if pooled else np.zeros((0, result.layout.size))
+        samples = stacked_samples(recs, result.layout.size, discard=burn, flat=True,
+                                  before_step=n)
         wall = setup + sum(stage1) + sum(float(np.sum(r.step_seconds[:n])) for r in recs)
         if samples.shape[0] == 0:
             out.append({"steps": n, "wall_s": wall, "rmse": math.nan, "coverage": math.nan,

@@ -12,7 +12,7 @@ scored per check (interval ends from a few hundred draws move the coverage by
 about a point; all draws of a long chain would take minutes per check).
 
 This module imports :mod:`mcmcfit.outputs.accuracy` and
-:mod:`mcmcfit.sampling.chain_file`.
+:mod:`mcmcfit.sampling` (chain, chain_file).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from mcmcfit.outputs.accuracy import albedo_score
+from mcmcfit.sampling.chain import stacked_samples
 from mcmcfit.sampling.chain_file import read_chains_h5
 
 __all__ = ["MAX_DRAWS", "checkpoint_scores"]
@@ -69,11 +70,7 @@ def checkpoint_scores(fit_dir: Path, summary: dict, model, true_diffuse: np.ndar
     out = []
     for check in checks:
         n = int(check["kept_steps"])
-        pooled = []
-        for rec in records:
-            kept = rec.samples[rec.sample_step < n]
-            pooled.append(kept[int(burn * kept.shape[0]):])
-        samples = np.concatenate(pooled) if pooled else np.zeros((0, layout.size))
+        samples = stacked_samples(records, layout.size, discard=burn, flat=True, before_step=n)
         if samples.shape[0] == 0:
             continue
         pick = np.unique(np.linspace(0, samples.shape[0] - 1,

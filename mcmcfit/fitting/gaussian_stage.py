@@ -121,8 +121,8 @@ class GaussianPhases:
 
     Reads the session's ``problem``, ``cfg``, ``rng``, ``posterior`` and
     ``state``, and sets ``coords``, ``mode``, ``region``, ``approx`` (and
-    ``posterior``, ``state``); ``_warm``, ``_build_data`` and ``_build_proposal`` are the
-    session's.
+    ``posterior``, ``state``); ``_warm``, ``_build_data`` and ``_build_proposal``
+    are the session's.
     """
 
     def _scene_caster(self) -> SceneCaster:
@@ -272,7 +272,7 @@ class GaussianPhases:
         return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size}
 
     def warmup_draws(self, fraction: float = 0.5) -> np.ndarray:
-        """Return the last ``fraction`` of the warm-up's recorded draws in the sampling coordinates (n, d)."""
+        """Return the last ``fraction`` of the warm-up's draws in sampling coordinates (n, d)."""
         if self._warm is None or self.coords is None:
             return np.zeros((0, 0 if self.coords is None else self.coords.size))
         rec = self._warm.record()
@@ -281,7 +281,7 @@ class GaussianPhases:
         return np.array([self.coords.u_of(layout.from_vector(v, base)) for v in tail])
 
     def widen(self, draws: list[np.ndarray]) -> dict:
-        """Widen the Gaussian approximation where the warm-up ``draws`` (one array per chain) are wider.
+        """Widen the Gaussian approximation where warm-up ``draws`` (one array per chain) are wider.
 
         See :func:`proposals.laplace.widening.widened_by_draws`; the moves are
         rebuilt on the widened approximation (their step multipliers are

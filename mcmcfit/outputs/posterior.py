@@ -33,7 +33,8 @@ import numpy as np
 from albedo_model.errors import InputError
 from albedo_model.pca import PCAPart
 
-__all__ = ["QUANTILE_DRAWS", "AlbedoPosterior", "albedo_posterior", "row_quantiles", "visible_vertices"]
+__all__ = ["QUANTILE_DRAWS", "AlbedoPosterior", "albedo_posterior", "row_quantiles",
+           "visible_vertices"]
 
 #: Elements of one block of Monte Carlo draws (draws x rows), about 32 MB of float64.
 BLOCK_ELEMENTS = 1 << 22

@@ -80,7 +80,7 @@ class ProposalStats(NamedTuple):
 
 
 def stacked_samples(records: Sequence[ChainRecord], size: int, *, discard: float = 0.0,
-                    flat: bool = False) -> np.ndarray:
+                    flat: bool = False, before_step: int | None = None) -> np.ndarray:
     """Kept samples of several chains after a burn-in, emcee's ``get_chain`` style.
 
     Parameters
@@ -93,6 +93,9 @@ def stacked_samples(records: Sequence[ChainRecord], size: int, *, discard: float
         Leading fraction of each chain's samples dropped (of the shortest chain's count).
     flat : bool
         Pool the chains.
+    before_step : int, optional
+        Only the samples recorded before this step of the stage (the chains as
+        they were at a checkpoint); the burn-in is then a fraction of those.
 
     Returns
     -------
@@ -101,9 +104,11 @@ def stacked_samples(records: Sequence[ChainRecord], size: int, *, discard: float
     """
     if not records:
         return np.zeros((0, size)) if flat else np.zeros((0, 0, size))
-    n = min(r.samples.shape[0] for r in records)
+    kept = [r.samples if before_step is None else r.samples[r.sample_step < before_step]
+            for r in records]
+    n = min(k.shape[0] for k in kept)
     start = int(discard * n)
-    arr = np.stack([r.samples[start:n] for r in records])
+    arr = np.stack([k[start:n] for k in kept])
     return arr.reshape(-1, size) if flat else arr
 
 

@@ -1,4 +1,4 @@
-"""The Laplace approximation widened where the warm-up's draws are wider: a low-rank metric adaptation.
+"""The Laplace approximation widened where warm-up draws are wider: low-rank metric adaptation.
 
 The Gaussian moves (:mod:`proposals.laplace.moves`) whiten the posterior with
 its Laplace approximation ``N(m, L L^T)``. Where the posterior is wider than

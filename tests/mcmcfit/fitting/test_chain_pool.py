@@ -80,7 +80,7 @@ def test_a_failing_worker_raises_with_its_traceback(case):
 
 
 def test_widening_splits_the_warmup_and_is_recorded(case):
-    """``widen``: at 60 % of the warm-up every chain widens its approximation from the pooled draws."""
+    """``widen``: at 60 % of the warm-up each chain widens its approximation from pooled draws."""
     model, image, clicks = case
     cfg = _cfg(parallel=False, widen=True, steps=50, warmup_steps=100, check_every=50,
                landmark_steps=100)

@@ -56,7 +56,7 @@ def test_draws_of_the_approximation_itself_widen_nothing(seed):
 
 
 def test_autocorrelated_draws_of_the_approximation_widen_nothing():
-    """An AR(1) chain (rho 0.6: 4 draws per effective one) has noise eigenvalues beyond the iid edge."""
+    """An AR(1) chain (rho 0.6: 4 draws per effective one) spreads noise beyond the iid edge."""
     rng = np.random.default_rng(7)
     approx = _approx(rng)
     for _ in range(3):
