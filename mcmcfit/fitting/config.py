@@ -90,6 +90,12 @@ class FitConfig:
         (``"mode"``: a smooth surrogate, no ray cast per leapfrog step). Either
         is a function of the position alone, so the move stays exact; the
         acceptance test uses the exact ray-cast posterior.
+    image_size : bool
+        Gaussian sampler: sample the log image size of the face in place of
+        the log focal length (:mod:`proposals.laplace.image_scale`; the
+        anchors are the vertices the region sees at the mode). Straightens the
+        curved focal-length/distance/size ridge the Laplace approximation
+        cannot follow. Perspective cameras only (ignored for orthographic ones).
     widen : bool
         Gaussian sampler: at 60 % of the warm-up, widen the Laplace
         approximation the moves whiten with along the (at most 4) directions
@@ -224,6 +230,7 @@ class FitConfig:
     hmc_weight: float = 0.3
     hmc_leapfrog: int = 6
     hmc_triangles: str = "cast"
+    image_size: bool = True
     widen: bool = False
     stop_when_converged: bool = True
     time_budget: float | None = None

@@ -11,8 +11,11 @@ them; the driver, :mod:`mcmcfit.fitting.fit`, calls them in lockstep):
 2. :meth:`~GaussianPhases.measure_target` / :meth:`~GaussianPhases.set_region` --
    the driver takes the region and noise model of the best chain's mode and
    sets them on every chain (one posterior for all), which climb again;
-3. :meth:`~GaussianPhases.prepare_gaussian` -- the Laplace approximation at
-   the mode, the moves built on it, the chain started from a draw of it;
+3. :meth:`~GaussianPhases.prepare_gaussian` -- the sampling coordinates
+   (with ``image_size``: the face's log image size in place of the log focal
+   length, anchored at the vertices the region sees at the mode), the Laplace
+   approximation at the mode, the moves built on it, the chain started from a
+   draw of it;
 4. optionally (``widen``), during the warm-up, :meth:`~GaussianPhases.warmup_draws`
    and :meth:`~GaussianPhases.widen` -- the approximation widened where the
    chains' warm-up draws are wider (:mod:`proposals.laplace.widening`).
@@ -31,7 +34,7 @@ Helpers:
 This module imports :mod:`albedo_model` (camera, params, scene_vector, render),
 :mod:`mcmcfit.fitting` (mode, problem), :mod:`mcmcfit.proposal_data.face_pixels`,
 :mod:`mcmcfit.sampling.kernel`, :mod:`mcmcfit.targets` (curvature, noise_model) and
-:mod:`proposals.laplace` (coordinates, schedule, widening).
+:mod:`proposals.laplace` (coordinates, image_scale, schedule, widening).
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.laplace.coordinates import SamplingCoordinates
 from proposals.laplace.schedule import GAUSSIAN_BLOCKS
+from proposals.laplace.image_scale import ImageScale, anchor_vertices
 from proposals.laplace.widening import widened_by_draws
 
 __all__ = ["ADOPT_GAP", "START_ERODE", "GaussianPhases", "appearance_coordinates", "recentred",
@@ -97,9 +101,14 @@ def appearance_coordinates(coords: SamplingCoordinates) -> np.ndarray:
     return np.array([n.startswith(blocks) for n in coords.names])
 
 
-def sampling_coordinates(params: RenderParameter) -> SamplingCoordinates:
-    """Return the Gaussian moves' coordinates for a fit whose parameters look like ``params``."""
-    return SamplingCoordinates(SceneLayout.for_params(params), params)
+def sampling_coordinates(params: RenderParameter,
+                         scale: ImageScale | None = None) -> SamplingCoordinates:
+    """Return the Gaussian moves' coordinates for a fit whose parameters look like ``params``.
+
+    With ``scale`` the focal length's coordinate is the face's log image size
+    (:mod:`proposals.laplace.image_scale`).
+    """
+    return SamplingCoordinates(SceneLayout.for_params(params), params, scale=scale)
 
 
 def region_and_noise(renderer: Renderer, target_linear: np.ndarray, params: RenderParameter,
@@ -263,7 +272,13 @@ class GaussianPhases:
                     "dimension": self.coords.size}
         curvature = PosteriorCurvature(self.posterior.face, self.coords.layout,
                                        caster=self._scene_caster())
-        self.approx = laplace(curvature, self.coords, self.mode.params)
+        mode = self.mode.params
+        if self.cfg.image_size and not mode.camera.orthographic:
+            anchors = anchor_vertices(self.problem.model.triangles,
+                                      curvature.region_triangles(mode))
+            self.coords = sampling_coordinates(
+                mode, scale=ImageScale.of_model(self.problem.model, mode, anchors))
+        self.approx = laplace(curvature, self.coords, mode)
         self._build_proposal()
         start = self.coords.params_of(self.approx.draw(self.rng), self.mode.params)
         self.state = init(start, self.posterior.face, image=True)

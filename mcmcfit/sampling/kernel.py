@@ -198,7 +198,8 @@ def step(rng: np.random.Generator, state: ChainState, target: Target, proposal: 
     move = proposal(rng, state)
     if move.touched == Block.NONE:
         return state, StepInfo(move.name, False, IDENTITY, 0.0, Block.NONE)
-    if move.log_q_ratio == -math.inf:  # refused by the proposal itself (e.g. a diverged trajectory)
+    if move.log_q_ratio == -math.inf or math.isnan(move.log_q_ratio):
+        # refused by the proposal itself (a diverged trajectory, a point outside its coordinates)
         stage = REJECTED_JOINT if move.joint else REJECTED_LANDMARKS
         return state, StepInfo(move.name, False, stage, -math.inf, move.touched)
     new = move.params

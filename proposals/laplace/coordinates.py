@@ -17,7 +17,15 @@ maps a vector ``u`` to scene parameters through a
   exponent are positive and carry log-normal priors: their coordinate is the
   logarithm (``x = exp(u)``, ``t_z = view_z - exp(u)``), in which the priors are
   Gaussian and the focal-length/distance ridge (the image size ``f / d``) is a
-  straight line.
+  straight line;
+* given an :class:`~proposals.laplace.image_scale.ImageScale` (``scale``), the
+  focal length's coordinate is the log **image size** of the face,
+  ``log f + scale.log_radius(x)``, in place of ``log f``: the image pins it
+  directly, and the ridge that ``log f`` traces against the distance, the
+  shape's size and the translation (curved in those coordinates) becomes a
+  coordinate axis. ``f`` then follows from the other entries
+  (``f = exp(u_f - log_radius(x))``, a triangular map), and ``dx/du`` is the
+  elementwise map plus one row.
 
 A move drawn in ``u`` has, in the parameters as stored, the transition
 density of ``u`` times ``|du/dx|``; :meth:`SamplingCoordinates.log_jacobian`
@@ -25,8 +33,8 @@ is ``log |dx/du|`` (the sum of the log-scale entries), so the
 Metropolis-Hastings ratio of a move ``u -> u'`` is its ratio in ``u`` plus
 ``log_jacobian(u') - log_jacobian(u)``.
 
-This module imports :mod:`albedo_model.errors`, :mod:`albedo_model.params` and
-:mod:`albedo_model.scene_vector`.
+This module imports :mod:`albedo_model.errors`, :mod:`albedo_model.params`,
+:mod:`albedo_model.scene_vector` and :mod:`proposals.laplace.image_scale`.
 """
 
 from __future__ import annotations
@@ -38,6 +46,7 @@ import numpy as np
 from albedo_model.errors import InputError
 from albedo_model.params import Block, RenderParameter
 from albedo_model.scene_vector import SceneLayout
+from proposals.laplace.image_scale import ImageScale
 
 __all__ = ["HELD", "LOG_SCALE", "SamplingCoordinates", "entry_blocks"]
 
@@ -72,6 +81,9 @@ class SamplingCoordinates:
         The parameter blocks sampled (entries of other blocks are held too).
     held : sequence of str
         Scene entries held at the template's values (default :data:`HELD`).
+    scale : ImageScale, optional
+        Sample the log image size in place of the log focal length (see the
+        module notes); same layout as ``layout``.
 
     Attributes
     ----------
@@ -85,11 +97,13 @@ class SamplingCoordinates:
     template: RenderParameter
     blocks: Block = Block.ALL
     held: tuple[str, ...] = HELD
+    scale: ImageScale | None = None
     names: tuple[str, ...] = field(init=False)
     touches: Block = field(init=False)
     _keep: np.ndarray = field(init=False, repr=False)
     _log: np.ndarray = field(init=False, repr=False)
     _tz: int = field(init=False, repr=False)
+    _f: int | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         """Choose the sampled entries and their scales."""
@@ -112,6 +126,14 @@ class SamplingCoordinates:
                 touches |= _BLOCK_OF[entry]
         if not keep:
             raise InputError("no scene entry is sampled")
+        f_entry = slices["focal_length"].start
+        f_pos = keep.index(f_entry) if (self.scale is not None and f_entry in keep) else None
+        if self.scale is not None:
+            if self.scale.layout != self.layout:
+                raise InputError("the image scale's scene layout differs from the coordinates'")
+            if f_pos is not None:
+                names[f_pos] = "log_image_size"
+        object.__setattr__(self, "_f", f_pos)
         object.__setattr__(self, "_keep", np.asarray(keep, np.int64))
         object.__setattr__(self, "_log", np.asarray(log, bool))
         object.__setattr__(self, "_tz", tz)
@@ -137,12 +159,15 @@ class SamplingCoordinates:
 
     def u_of_x(self, x: np.ndarray) -> np.ndarray:
         """Return the coordinates of a scene vector (log-scale entries must be positive)."""
-        v = np.asarray(x, np.float64)[self._keep].copy()
+        x = np.asarray(x, np.float64)
+        v = x[self._keep].copy()
         dist = self._keep == self._tz
         v[dist] = self._view_z() - v[dist]
         if np.any(v[self._log] <= 0):
             raise InputError("focal length, distance and specular exponent must be positive")
         v[self._log] = np.log(v[self._log])
+        if self._f is not None:
+            v[self._f] += self.scale.log_radius(x)
         return v
 
     def x_of_u(self, u: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
@@ -156,6 +181,8 @@ class SamplingCoordinates:
         dist = self._keep == self._tz
         v[dist] = self._view_z() - v[dist]
         x[self._keep] = v
+        if self._f is not None:  # f from the image size and the other entries
+            x[self._keep[self._f]] = np.exp(u[self._f] - self.scale.log_radius(x))
         return x
 
     def u_of(self, params: RenderParameter) -> np.ndarray:
@@ -167,24 +194,53 @@ class SamplingCoordinates:
         base = self.template if base is None else base
         return self.layout.with_vector(base, self.x_of_u(u, self.layout.vector(base)))
 
-    def dx_du(self, u: np.ndarray) -> np.ndarray:
-        """Return ``dx_i / du_i`` of each coordinate's scene entry (the map is elementwise)."""
+    def _log_values(self, u: np.ndarray) -> np.ndarray:
+        """Return the log of each log-scale entry's value (``u`` itself but for the image size)."""
         u = np.asarray(u, np.float64)
-        return np.where(self._log, np.exp(np.where(self._log, u, 0.0)), 1.0) * self._signs()
+        out = np.where(self._log, u, 0.0)
+        if self._f is not None:
+            out[self._f] = np.log(self.x_of_u(u)[self._keep[self._f]])
+        return out
+
+    def _radius_gradient(self, u: np.ndarray) -> np.ndarray:
+        """Return ``d log_radius / du`` (d,) through the elementwise part of the map (0 at ``f``)."""
+        x = self.x_of_u(u)
+        _, gx = self.scale.value_and_gradient(x)
+        c = self._diagonal(u) * gx[self._keep]
+        c[self._f] = 0.0
+        return c
+
+    def _diagonal(self, u: np.ndarray) -> np.ndarray:
+        logs = self._log_values(u)
+        return np.where(self._log, np.exp(logs), 1.0) * self._signs()
+
+    def dx_du(self, u: np.ndarray) -> np.ndarray:
+        """Return the diagonal ``dx_i / du_i`` of the map (the whole Jacobian without ``scale``)."""
+        return self._diagonal(u)
 
     def d2x_du2(self, u: np.ndarray) -> np.ndarray:
         """Return ``d^2 x_i / du_i^2`` (nonzero for the log-scale entries)."""
-        u = np.asarray(u, np.float64)
-        return np.where(self._log, np.exp(np.where(self._log, u, 0.0)), 0.0) * self._signs()
+        return np.where(self._log, self._diagonal(u), 0.0)
+
+    def jacobian(self, u: np.ndarray) -> np.ndarray:
+        """Return ``dx / du`` (d, d) between the coordinates and their scene entries."""
+        jac = np.diag(self._diagonal(u))
+        if self._f is not None:
+            jac[self._f] -= jac[self._f, self._f] * self._radius_gradient(u)
+        return jac
 
     def log_jacobian(self, u: np.ndarray) -> float:
-        """Return ``log |dx/du|``: the sum of the log-scale coordinates."""
-        return float(np.sum(np.asarray(u, np.float64)[self._log]))
+        """Return ``log |dx/du|``: the sum of the log-scale entries' logarithms."""
+        return float(np.sum(self._log_values(u)))
 
     def gradient(self, gradient_x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Return the gradient in ``u`` of ``log p(x(u)) + log |dx/du|`` from that of ``log p`` in x."""
         g = np.asarray(gradient_x, np.float64)[self._keep]
-        return self.dx_du(u) * g + self._log.astype(np.float64)
+        out = self._diagonal(u) * g + self._log.astype(np.float64)
+        if self._f is not None:
+            f = self._diagonal(u)[self._f]
+            out -= (g[self._f] * f + 1.0) * self._radius_gradient(u)
+        return out
 
     def to_coordinates(self, gradient_x: np.ndarray, precision_x: np.ndarray, u: np.ndarray,
                        *, second_order: np.ndarray | None = None
@@ -194,20 +250,30 @@ class SamplingCoordinates:
         ``gradient_x`` (D,) and ``precision_x`` (D, D) (the negative Hessian, or
         a Gauss-Newton approximation of it) are of ``log p(x)``; the result is of
         ``log p(x(u)) + log |dx/du|``. The chain rule's second-order term
-        ``-g_i d^2x_i/du_i^2`` of the log-scale entries uses ``second_order``
+        ``-g_i d^2x_i/du^2`` of the log-scale entries uses ``second_order``
         (default ``gradient_x``): pass the gradient of the terms whose precision
         is exact (the prior: a log-normal prior in x is then exactly Gaussian in
         u) and leave out a Gauss-Newton likelihood's, whose second-order terms
         are dropped anyway (with them, a point off the mode can make the
-        precision indefinite).
+        precision indefinite). With ``scale`` the image size's term is
+        ``-g_f f a a^T`` (``a = d log f / du``); the log radius's own curvature
+        is left out (small: the radius is nearly linear in the entries).
         """
-        d = self.dx_du(u)
         g = np.asarray(gradient_x, np.float64)[self._keep]
         h = np.asarray(precision_x, np.float64)[np.ix_(self._keep, self._keep)]
-        grad = d * g + self._log.astype(np.float64)
-        prec = h * np.outer(d, d)
+        jac = self.jacobian(u)
+        grad = self.gradient(gradient_x, u)
+        prec = jac.T @ h @ jac
         g2 = g if second_order is None else np.asarray(second_order, np.float64)[self._keep]
-        prec[np.diag_indices_from(prec)] -= g2 * self.d2x_du2(u)
+        d2 = self.d2x_du2(u)
+        if self._f is None:
+            prec[np.diag_indices_from(prec)] -= g2 * d2
+        else:
+            diag = g2 * d2
+            diag[self._f] = 0.0
+            prec[np.diag_indices_from(prec)] -= diag
+            a = jac[self._f] / jac[self._f, self._f]
+            prec -= g2[self._f] * d2[self._f] * np.outer(a, a)
         return grad, prec
 
     def blocks_of(self, mask: np.ndarray) -> Block:

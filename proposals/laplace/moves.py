@@ -336,6 +336,8 @@ class GaussianHMC:
             uu = a.mean + a.chol_cov @ zz
             if not np.all(np.isfinite(uu)):
                 return None
+            if not math.isfinite(c.log_jacobian(uu)):
+                return None  # outside the coordinates' domain (e.g. the face behind the camera)
             points.append(c.params_of(uu, params))
             try:
                 value, raw = self.grad(points[-1])

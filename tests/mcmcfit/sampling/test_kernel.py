@@ -157,9 +157,11 @@ def test_identity_moves_and_minus_infinity_states():
     assert info.rejected_by != REJECTED_IMAGE
 
 
+@pytest.mark.parametrize("ratio", [-math.inf, math.nan])
 @pytest.mark.parametrize("joint", [True, False])
-def test_a_move_refused_by_its_proposal_evaluates_nothing(joint):
-    """A -inf proposal ratio (a diverged HMC trajectory) is rejected before any factor is read."""
+def test_a_move_refused_by_its_proposal_evaluates_nothing(joint, ratio):
+    """A -inf or NaN proposal ratio (a diverged HMC trajectory, a point outside the move's
+    coordinates) is rejected before any factor is read."""
     from proposals.base import Move
 
     class Refused:
@@ -167,7 +169,7 @@ def test_a_move_refused_by_its_proposal_evaluates_nothing(joint):
 
         def __call__(self, rng, state):
             bad = state.params._replace(pose=state.params.pose._replace(yaw=math.nan))
-            return Move(bad, -math.inf, Block.POSE, self.name, joint=joint)
+            return Move(bad, ratio, Block.POSE, self.name, joint=joint)
 
     target = ToyTarget()
     s0 = init(fit_to_image_size(default_square(), 8, 8), target)
