@@ -182,7 +182,8 @@ def test_lightstage_photograph(shared_data, tmp_path):
     png = tmp_path / "im1_small.png"
     write_png(png, image)
     summary = run_fit_job(png, tmp_path / "fit", seed=1,
-                          config=FitConfig(steps=100, landmark_steps=1500, thin=5))
+                          config=FitConfig(steps=100, landmark_steps=1500, thin=5, chains=1,
+                                           parallel=False))
     assert summary["inputs"]["landmarks"] == "detected"
     assert np.isfinite(summary["landmark_rmse_px"]) and summary["landmark_rmse_px"] < 10.0
     assert (tmp_path / "fit" / "report.html").is_file()
