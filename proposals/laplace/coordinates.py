@@ -194,25 +194,29 @@ class SamplingCoordinates:
         base = self.template if base is None else base
         return self.layout.with_vector(base, self.x_of_u(u, self.layout.vector(base)))
 
-    def _log_values(self, u: np.ndarray) -> np.ndarray:
-        """Return the log of each log-scale entry's value (``u`` itself but for the image size)."""
+    def _log_values(self, u: np.ndarray, x: np.ndarray | None = None) -> np.ndarray:
+        """Return the log of each log-scale entry's value (``u`` itself but for the image size).
+
+        ``x`` is ``x_of_u(u)`` when the caller has it (read only with ``scale``).
+        """
         u = np.asarray(u, np.float64)
         out = np.where(self._log, u, 0.0)
         if self._f is not None:
-            out[self._f] = np.log(self.x_of_u(u)[self._keep[self._f]])
+            x = self.x_of_u(u) if x is None else x
+            out[self._f] = np.log(x[self._keep[self._f]])
         return out
 
-    def _radius_gradient(self, u: np.ndarray) -> np.ndarray:
-        """Return ``d log_radius / du`` (d,) through the elementwise part of the map (0 at ``f``)."""
-        x = self.x_of_u(u)
-        _, gx = self.scale.value_and_gradient(x)
-        c = self._diagonal(u) * gx[self._keep]
-        c[self._f] = 0.0
-        return c
+    def _diagonal(self, u: np.ndarray, x: np.ndarray | None = None) -> np.ndarray:
+        return np.where(self._log, np.exp(self._log_values(u, x)), 1.0) * self._signs()
 
-    def _diagonal(self, u: np.ndarray) -> np.ndarray:
-        logs = self._log_values(u)
-        return np.where(self._log, np.exp(logs), 1.0) * self._signs()
+    def _scale_terms(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the diagonal of ``dx/du`` and ``d log_radius / du`` (0 at ``f``), one map of ``u``."""
+        x = self.x_of_u(u)
+        diag = self._diagonal(u, x)
+        _, gx = self.scale.value_and_gradient(x)
+        c = diag * gx[self._keep]
+        c[self._f] = 0.0
+        return diag, c
 
     def dx_du(self, u: np.ndarray) -> np.ndarray:
         """Return the diagonal ``dx_i / du_i`` of the map (the whole Jacobian without ``scale``)."""
@@ -222,25 +226,34 @@ class SamplingCoordinates:
         """Return ``d^2 x_i / du_i^2`` (nonzero for the log-scale entries)."""
         return np.where(self._log, self._diagonal(u), 0.0)
 
+    def _jacobian_of(self, diag: np.ndarray, c: np.ndarray | None) -> np.ndarray:
+        jac = np.diag(diag)
+        if c is not None:
+            jac[self._f] -= diag[self._f] * c
+        return jac
+
     def jacobian(self, u: np.ndarray) -> np.ndarray:
         """Return ``dx / du`` (d, d) between the coordinates and their scene entries."""
-        jac = np.diag(self._diagonal(u))
-        if self._f is not None:
-            jac[self._f] -= jac[self._f, self._f] * self._radius_gradient(u)
-        return jac
+        if self._f is None:
+            return self._jacobian_of(self._diagonal(u), None)
+        return self._jacobian_of(*self._scale_terms(u))
 
     def log_jacobian(self, u: np.ndarray) -> float:
         """Return ``log |dx/du|``: the sum of the log-scale entries' logarithms."""
         return float(np.sum(self._log_values(u)))
 
+    def _gradient_of(self, g: np.ndarray, diag: np.ndarray, c: np.ndarray | None) -> np.ndarray:
+        out = diag * g + self._log.astype(np.float64)
+        if c is not None:
+            out -= (g[self._f] * diag[self._f] + 1.0) * c
+        return out
+
     def gradient(self, gradient_x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Return the gradient in ``u`` of ``log p(x(u)) + log |dx/du|`` from that of ``log p`` in x."""
         g = np.asarray(gradient_x, np.float64)[self._keep]
-        out = self._diagonal(u) * g + self._log.astype(np.float64)
-        if self._f is not None:
-            f = self._diagonal(u)[self._f]
-            out -= (g[self._f] * f + 1.0) * self._radius_gradient(u)
-        return out
+        if self._f is None:
+            return self._gradient_of(g, self._diagonal(u), None)
+        return self._gradient_of(g, *self._scale_terms(u))
 
     def to_coordinates(self, gradient_x: np.ndarray, precision_x: np.ndarray, u: np.ndarray,
                        *, second_order: np.ndarray | None = None
@@ -261,17 +274,18 @@ class SamplingCoordinates:
         """
         g = np.asarray(gradient_x, np.float64)[self._keep]
         h = np.asarray(precision_x, np.float64)[np.ix_(self._keep, self._keep)]
-        jac = self.jacobian(u)
-        grad = self.gradient(gradient_x, u)
+        diag, c = self._scale_terms(u) if self._f is not None else (self._diagonal(u), None)
+        jac = self._jacobian_of(diag, c)
+        grad = self._gradient_of(g, diag, c)
         prec = jac.T @ h @ jac
         g2 = g if second_order is None else np.asarray(second_order, np.float64)[self._keep]
-        d2 = self.d2x_du2(u)
+        d2 = np.where(self._log, diag, 0.0)
         if self._f is None:
             prec[np.diag_indices_from(prec)] -= g2 * d2
         else:
-            diag = g2 * d2
-            diag[self._f] = 0.0
-            prec[np.diag_indices_from(prec)] -= diag
+            second = g2 * d2
+            second[self._f] = 0.0
+            prec[np.diag_indices_from(prec)] -= second
             a = jac[self._f] / jac[self._f, self._f]
             prec -= g2[self._f] * d2[self._f] * np.outer(a, a)
         return grad, prec
