@@ -120,36 +120,26 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
                         in_axes=((-1, 0),), out_axes=-1)((dattrs, dx))
 
     @jax.jit
-    def shading_pullback(attrs, x, scene, hits, target, weight):
-        """Gaussian read-out ``-sum weight ||R - target||^2 / 2`` and its pullback to (attrs, x)."""
-        colours, pullback = jax.vjp(lambda a, b: shading(a, b, scene, hits), attrs, x)
-        r = colours - target
-        value = -0.5 * jnp.sum(weight * r * r)
-        d_attrs, dx = pullback(-weight * r)
-        return value, d_attrs, dx
+    def gaussian_value_and_grad(x, scene, hits, albedo_mean, albedo_basis, target, weight):
+        """Gaussian read-out ``-sum weight ||R - target||^2 / 2`` and its gradient in ``x``.
 
-    @jax.jit
-    def attribute_pullback(v, normals, table, x, scene, hits, d_attrs):
-        _, pullback = jax.vjp(lambda a, b, c, d: attributes(a, b, c, d, scene, hits),
-                              v, normals, table, x)
-        return pullback(d_attrs)
-
-    @jax.jit
-    def normal_pullback(v, scene, dv, dn):
-        """Cotangent of the vertices from those of the vertices and the normals."""
-        _, pullback = jax.vjp(lambda vv: vertex_normal_columns(vv, scene.triangles), v)
-        return dv + pullback(dn)[0]
-
-    @jax.jit
-    def transposed(basis, cotangent):
-        """``basis^T`` times a flattened cotangent (one small program per basis)."""
-        return jnp.reshape(cotangent, (1, -1)) @ basis
+        One reverse-mode program over all the stages: unlike the forward-mode
+        Jacobian, a single pullback recomputes nothing per direction, and one
+        program saves the stages' dispatches and host round trips (about 11 ms
+        against 16 ms for the staged pullbacks at 250^2, one CPU thread).
+        """
+        def value(xx):
+            v, normals = vertices(xx, scene)
+            attrs = attributes(v, normals, albedo_table(xx, albedo_mean, albedo_basis), xx,
+                               scene, hits)
+            r = shading(attrs, xx, scene, hits) - target
+            return -0.5 * jnp.sum(weight * r * r)
+        return jax.value_and_grad(value)(x)
 
     del ks, ke
     return (jax.jit(vertices), jax.jit(albedo_table), jax.jit(attributes), jax.jit(shading),
             jax.jit(vertex_tangents), attribute_tangents, jax.jit(albedo_tangents),
-            shading_tangents, shading_pullback, attribute_pullback, normal_pullback,
-            transposed)
+            shading_tangents, gaussian_value_and_grad)
 
 
 _cached_stages = functools.cache(_stages)
@@ -270,29 +260,14 @@ class PixelJacobian:
         Returns
         -------
         (float, (D,) float64)
-            The value (float32 sums) and its gradient in the layout's order. One
-            pass down the three stages and one back (their vector-Jacobian
-            products), each compiled on its own: a few ms where the Jacobian
-            takes a second.
+            The value (float32 sums) and its gradient in the layout's order: one
+            pass down the stages and one back, in one compiled program (a few
+            ms where the Jacobian takes a second).
         """
         stages, scene, x = self._prepare(params)
-        vertices, table, attributes, shading = stages[:4]
-        shading_pb, attribute_pb, normal_pb, transposed = stages[8:]
-        hits = hits._replace(pixels=None)
-        v, normals = vertices(x, scene)
-        tab = table(x, self._albedo_mean, self._albedo_basis)
-        attrs = attributes(v, normals, tab, x, scene, hits)
-        value, d_attrs, dx3 = shading_pb(attrs, x, scene, hits, target, weight)
-        dv, dn, dtable, dx2 = attribute_pb(v, normals, tab, x, scene, hits, d_attrs)
-        dv = normal_pb(v, scene, dv, dn)
-        grad = np.asarray(dx2, np.float64) + np.asarray(dx3, np.float64)
-        sl = self.layout.slices()
-        for name, basis, cot in (("shape", scene.shape_basis, dv),
-                                 ("expression", scene.expression_basis, dv),
-                                 ("albedo", self._albedo_basis, dtable)):
-            if sl[name].stop > sl[name].start:
-                grad[sl[name]] += np.asarray(transposed(basis, cot), np.float64).reshape(-1)
-        return float(value), grad
+        value, grad = stages[8](x, scene, hits._replace(pixels=None), self._albedo_mean,
+                                self._albedo_basis, target, weight)
+        return float(value), np.asarray(grad, np.float64)
 
 
 def _with_albedo_directions(dattrs, diffuse_t, specular_t, n_shading: int):

@@ -28,7 +28,7 @@ def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "
                    f"the chains have converged (default {steps_default})")
     p.add_argument("--warmup-steps", type=int, metavar="N",
                    help="image-stage warm-up steps per chain: step sizes adapted, never part "
-                   "of the posterior (default 1000 after the climb to the mode; 30%% of "
+                   "of the posterior (default 500 after the climb to the mode; 30%% of "
                    "--max-steps with --sampler random-walk)")
     p.add_argument("--sampler", choices=("gaussian", "random-walk"),
                    help="image stage: climb to the mode, fixed interior pixel region, moves "

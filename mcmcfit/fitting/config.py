@@ -15,7 +15,13 @@ from albedo_model.errors import InputError
 from mcmcfit.targets.image import IMAGE_LIKELIHOODS
 from mcmcfit.targets.priors import PriorConfig
 
-__all__ = ["FitConfig"]
+__all__ = ["GAUSSIAN_WARMUP", "FitConfig"]
+
+#: Default warm-up steps per chain of the Gaussian sampler. Its chains start from a draw of
+#: the Laplace approximation, already in the posterior's bulk: the warm-up only adapts the
+#: step sizes (two windows). On the demo face 500 steps converged as fast as 1000 did
+#: (5,000 kept steps against 5,500-6,000) and saved ~20 s.
+GAUSSIAN_WARMUP = 500
 
 
 @dataclass(frozen=True)
@@ -54,8 +60,8 @@ class FitConfig:
         other in this process (the same chains, only slower).
     warmup_steps : int or None
         Image-stage warm-up steps per chain (step sizes adapted; never part of
-        the posterior). None: 1000 for the Gaussian sampler (after its climb to
-        the mode), 30 % of ``steps`` for the random-walk one (which measures the
+        the posterior). None: 500 for the Gaussian sampler (after its climb to
+        the mode, whose chains start from a draw of the Laplace approximation), 30 % of ``steps`` for the random-walk one (which measures the
         noise model in it; with 0 the configured noise model is kept).
     adapt_window : int
         Warm-up steps between two step-size adaptations.
@@ -82,7 +88,12 @@ class FitConfig:
         Gaussian sampler: top-level weight of the whitened HMC move of every
         coordinate (:class:`proposals.laplace.moves.GaussianHMC`; each of its
         ``hmc_leapfrog`` leapfrog steps is a ray cast and a gradient through the
-        shading), 0 for none.
+        shading), 0 for none. Default 3 steps: at the adapted step (~0.45 in
+        whitened units) a trajectory turns ~1.4 rad in a unit-variance direction,
+        close to the quarter period after which both a coordinate and its
+        square are decorrelated; 6 steps turned ~2.9 rad, nearly a half period,
+        which anticorrelates the coordinate but leaves its square (what the
+        folded R-hat and the tail-ESS read) almost unchanged.
     hmc_triangles : {"cast", "mode"}
         Gaussian sampler: the triangles the HMC gradient renders each region
         pixel with: those a ray cast at the point sees (``"cast"``: the exact
@@ -228,7 +239,7 @@ class FitConfig:
     block_weight: float = 0.5
     conditional_weight: float = 0.1
     hmc_weight: float = 0.3
-    hmc_leapfrog: int = 6
+    hmc_leapfrog: int = 3
     hmc_triangles: str = "cast"
     image_size: bool = True
     widen: bool = False
@@ -334,11 +345,11 @@ class FitConfig:
 
     @property
     def warmup(self) -> int:
-        """Warm-up steps per chain (``warmup_steps``; None: 1000 Gaussian, 30 % of ``steps`` random walk)."""
+        """Warm-up steps per chain (``warmup_steps``; None: 500 Gaussian, 30 % of ``steps`` random walk)."""
         if self.warmup_steps is not None:
             return self.warmup_steps
         if self.sampler != "random-walk":
-            return min(1000, self.steps)
+            return min(GAUSSIAN_WARMUP, self.steps)
         return (self.steps * 3) // 10
 
     def to_dict(self) -> dict:

@@ -141,6 +141,15 @@ def _landmark_jacobian(layout: SceneLayout, orthographic: bool):
     return jax.jit(f), jax.jit(jax.jacfwd(f))
 
 
+@functools.cache
+def _landmark_pullback(layout: SceneLayout, orthographic: bool):
+    """``(x, inputs, observed, weights) -> -J^T (weights (px - observed))``: one reverse pass."""
+    def g(x, inputs, observed, weights):
+        px, pullback = jax.vjp(lambda xx: _landmark_pixels(xx, inputs, layout, orthographic), x)
+        return pullback(-weights[:, None] * (px - observed))[0]
+    return jax.jit(g)
+
+
 class PosteriorCurvature:
     """Gradient and Gauss-Newton precision of a face posterior over a fixed pixel region.
 
@@ -271,11 +280,25 @@ class PosteriorCurvature:
                            triangles: np.ndarray | None = None) -> tuple[float, np.ndarray]:
         """Return the log posterior (up to constants, see :meth:`image_gradient`) and its gradient in x."""
         value, grad = self.image_gradient(params, triangles)
-        lm = self.landmarks(params)
+        lm_value, lm_grad = self._landmark_value_and_gradient(params)
         gp, _ = prior_curvature(params, self.layout, self.target.prior.config)
-        total = (value + float(self.target.log_lik_landmarks(params))
-                 + float(self.target.log_prior(params)))
-        return total, grad + lm.gradient + gp
+        return value + lm_value + float(self.target.log_prior(params)), grad + lm_grad + gp
+
+    def _landmark_value_and_gradient(self, params: RenderParameter) -> tuple[float, np.ndarray]:
+        """Return the landmark log likelihood and its gradient (visibility held): one projection."""
+        factor = self.target.landmarks
+        if not isinstance(factor, LandmarkTarget):
+            return float(self.target.log_lik_landmarks(params)), self.landmarks(params).gradient
+        px, visible = factor.project(params)
+        sigma = np.broadcast_to(np.asarray(factor.sigma, np.float64), (len(factor.names),))
+        weights = np.where(visible, 1.0 / sigma ** 2, 0.0)
+        pullback = _landmark_pullback(self.layout, bool(params.camera.orthographic))
+        with jax.enable_x64(True):
+            x = jnp.asarray(self.layout.vector(params), jnp.float64)
+            grad = np.asarray(pullback(x, self._landmark_arrays(factor, params),
+                                       np.asarray(factor.observed, np.float64), weights),
+                              np.float64)
+        return float(factor.log_lik_of(px, visible)), grad
 
     def landmarks(self, params: RenderParameter) -> Curvature:
         """Return the landmark part (Gauss-Newton with the visibility at ``params``)."""

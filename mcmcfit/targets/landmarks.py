@@ -220,9 +220,15 @@ class LandmarkTarget:
 
     def log_lik(self, params: RenderParameter) -> float:
         """Landmark log likelihood of ``params`` (see the module notes)."""
-        px, vis = self.project(params)
-        return landmark_log_lik(np.where(vis[:, None], px, 0.0), self.observed, vis, self.sigma,
-                                self.hidden_log_density)
+        return self.log_lik_of(*self.project(params))
+
+    def log_lik_of(self, px: np.ndarray, visible: np.ndarray) -> float:
+        """Landmark log likelihood of projected landmarks ``px`` (k, 2) and their visibility (k,).
+
+        ``px`` and ``visible`` as :meth:`project` returns them.
+        """
+        return landmark_log_lik(np.where(visible[:, None], px, 0.0), self.observed, visible,
+                                self.sigma, self.hidden_log_density)
 
 
 #: Face landmarks whose extent a face box measures: LFW's 16 ``.tlms`` points (brows,

@@ -92,6 +92,20 @@ def test_landmark_gradient_is_the_landmark_likelihoods(problem):
     assert not np.any(g[sl["albedo"]]) and not np.any(g[sl["light"]])
 
 
+def test_value_and_gradient_is_the_sum_of_its_parts(problem):
+    """The HMC path (one landmark projection, a reverse-mode landmark pullback) equals the parts."""
+    _, truth, face, lay, cur = problem
+    p = truth._replace(pose=truth.pose._replace(yaw=truth.pose.yaw + 0.02,
+                                                translation=(3.0, -2.0, -1000.0)))
+    value, grad = cur.value_and_gradient(p)
+    v_img, g_img = cur.image_gradient(p)
+    g_prior, _ = prior_curvature(p, lay, face.prior.config)
+    assert value == pytest.approx(v_img + face.log_lik_landmarks(p) + face.log_prior(p),
+                                  rel=1e-9, abs=1e-9)
+    np.testing.assert_allclose(grad, g_img + cur.landmarks(p).gradient + g_prior,
+                               rtol=1e-9, atol=1e-9 * np.abs(grad).max())
+
+
 def test_image_gradient_forward_reverse_and_finite_differences(problem):
     _, truth, face, lay, cur = problem
     p = truth._replace(pose=truth.pose._replace(translation=(0.5, -0.3, -1000.0)))
