@@ -60,9 +60,11 @@ class FitConfig:
         other in this process (the same chains, only slower).
     warmup_steps : int or None
         Image-stage warm-up steps per chain (step sizes adapted; never part of
-        the posterior). None: 500 for the Gaussian sampler (after its climb to
-        the mode, whose chains start from a draw of the Laplace approximation), 30 % of ``steps`` for the random-walk one (which measures the
-        noise model in it; with 0 the configured noise model is kept).
+        the posterior). None: :data:`GAUSSIAN_WARMUP` (500) for the Gaussian
+        sampler (after its climb to the mode; its chains start from a draw of
+        the Laplace approximation), 30 % of ``steps`` for the random-walk one
+        (which measures the noise model in it; with 0 the configured noise
+        model is kept).
     adapt_window : int
         Warm-up steps between two step-size adaptations.
     adapt : bool

@@ -150,6 +150,12 @@ def _landmark_pullback(layout: SceneLayout, orthographic: bool):
     return jax.jit(g)
 
 
+def _landmark_weights(factor: LandmarkTarget, visible: np.ndarray) -> np.ndarray:
+    """Per-landmark weights ``1 / sigma^2`` of the visible landmarks, 0 for hidden ones (k,)."""
+    sigma = np.broadcast_to(np.asarray(factor.sigma, np.float64), (len(factor.names),))
+    return np.where(visible, 1.0 / sigma ** 2, 0.0)
+
+
 class PosteriorCurvature:
     """Gradient and Gauss-Newton precision of a face posterior over a fixed pixel region.
 
@@ -290,8 +296,7 @@ class PosteriorCurvature:
         if not isinstance(factor, LandmarkTarget):
             return float(self.target.log_lik_landmarks(params)), self.landmarks(params).gradient
         px, visible = factor.project(params)
-        sigma = np.broadcast_to(np.asarray(factor.sigma, np.float64), (len(factor.names),))
-        weights = np.where(visible, 1.0 / sigma ** 2, 0.0)
+        weights = _landmark_weights(factor, visible)
         pullback = _landmark_pullback(self.layout, bool(params.camera.orthographic))
         with jax.enable_x64(True):
             x = jnp.asarray(self.layout.vector(params), jnp.float64)
@@ -315,8 +320,7 @@ class PosteriorCurvature:
             x = jnp.asarray(self.layout.vector(params), jnp.float64)
             px = np.asarray(value_fn(x, inputs), np.float64)
             jac = np.asarray(jac_fn(x, inputs), np.float64)  # (k, 2, D)
-        sigma = np.broadcast_to(np.asarray(factor.sigma, np.float64), (len(factor.names),))
-        wts = np.where(visible, 1.0 / sigma ** 2, 0.0)
+        wts = _landmark_weights(factor, visible)
         r = (px - factor.observed) * np.sqrt(wts)[:, None]
         j = jac * np.sqrt(wts)[:, None, None]
         j = j.reshape(-1, size)
