@@ -115,6 +115,13 @@ class FitConfig:
         where the chains' warm-up draws are clearly wider
         (:func:`proposals.laplace.widening.widened_by_draws`; the rest of the
         warm-up re-adapts the step sizes, the kept draws see it frozen).
+    widen_at : int
+        Gaussian sampler: at the first convergence check with at least this
+        many kept steps that has not passed, widen the approximation where the
+        kept draws of all chains are clearly wider; if any direction is
+        widened, those draws become warm-up, the step sizes are re-adapted for
+        100 steps and the kept draws start again (0: never). A posterior close
+        to its Laplace approximation widens nothing and loses no draws.
     stop_when_converged : bool
         End the image stage at the first check where every monitored quantity
         has rank-normalised split R-hat < 1.01 and bulk- and tail-ESS >= 400.
@@ -245,6 +252,7 @@ class FitConfig:
     hmc_triangles: str = "cast"
     image_size: bool = True
     widen: bool = False
+    widen_at: int = 0
     stop_when_converged: bool = True
     time_budget: float | None = None
     noise: str = "estimated"
@@ -294,6 +302,7 @@ class FitConfig:
         for name in ("steps", "landmark_steps", "n_shape", "n_albedo", "n_expression"):
             count(name)
         count("noise_updates")
+        count("widen_at")
         count("hmc_leapfrog", 1)
         for name in ("mode_rounds", "mode_steps", "region_erode", "region_band"):
             count(name)

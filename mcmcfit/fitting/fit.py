@@ -228,9 +228,41 @@ def _drive(pool, cfg: FitConfig, layout: ParamLayout, t_start: float,
         if cfg.stop_when_converged and verdict.get("converged"):
             reason = "converged"
             break
+        if (cfg.widen_at and kept >= cfg.widen_at and "widening_kept" not in stopping
+                and cfg.sampler == "gaussian" and cfg.adapt):
+            stopping["widening_kept"] = _widen_from_kept(pool, cfg)
+            if stopping["widening_kept"]["ratios"]:
+                stopping["checks"][-1]["restarted"] = True
+                kept = 0
     stopping.pop("kept_start", None)
     stopping.update(reason=reason, kept_steps=kept, warmup_steps=warm)
     return pool.call("finish"), noise, stopping
+
+
+#: Effective draws per kept draw assumed when widening from the kept draws: the slow
+#: directions widening is for are the draws' most correlated (ESS/draw ~0.01-0.05 there).
+KEPT_EFFECTIVE_FRACTION = 0.1
+#: Warm-up steps after widening from the kept draws (the moves' step sizes re-adapted).
+REWARM_STEPS = 100
+
+
+def _widen_from_kept(pool, cfg: FitConfig) -> dict:
+    """Widen every chain's approximation where the kept draws so far are wider; restart if so.
+
+    The draws of all chains (their last three quarters) go into one estimate
+    (:func:`proposals.laplace.widening.widened_by_draws`). When a direction is
+    widened, every chain's kept draws so far become warm-up, the moves' step
+    sizes are re-adapted for :data:`REWARM_STEPS` steps and the kept draws
+    start again, so the kept chain is one frozen kernel throughout.
+    """
+    draws = pool.call("kept_draws", 0.75)
+    found = pool.call("widen", draws, KEPT_EFFECTIVE_FRACTION)[0]
+    out = {"ratios": found["ratios"], "largest": found["largest"], "edge": found["edge"],
+           "n_draws": found["n_draws"], "restarted_after": 0}
+    if found["ratios"]:
+        out["restarted_after"] = int(pool.call("restart_kept")[0])
+        pool.call("warmup", REWARM_STEPS, window=cfg.adapt_window, adapt=True)
+    return out
 
 
 #: Rounds of (region, noise model) measured at the best chain's mode, each followed by a climb.

@@ -288,14 +288,38 @@ class GaussianPhases:
 
     def warmup_draws(self, fraction: float = 0.5) -> np.ndarray:
         """Return the last ``fraction`` of the warm-up's draws in sampling coordinates (n, d)."""
-        if self._warm is None or self.coords is None:
+        return self._draws_of(self._warm, fraction)
+
+    def kept_draws(self, fraction: float = 0.75) -> np.ndarray:
+        """Return the last ``fraction`` of the kept draws so far in sampling coordinates (n, d)."""
+        return self._draws_of(self._kept, fraction)
+
+    def _draws_of(self, recorder, fraction: float) -> np.ndarray:
+        if recorder is None or self.coords is None:
             return np.zeros((0, 0 if self.coords is None else self.coords.size))
-        rec = self._warm.record()
+        rec = recorder.record()
         tail = rec.samples[int(rec.samples.shape[0] * (1.0 - fraction)):]
         layout, base = self.problem.layout, self.mode.params
         return np.array([self.coords.u_of(layout.from_vector(v, base)) for v in tail])
 
-    def widen(self, draws: list[np.ndarray]) -> dict:
+    def restart_kept(self) -> int:
+        """Make the kept draws so far warm-up (the sampler is about to change); return their number.
+
+        The next :meth:`draw` starts a new kept chain from the current state.
+        """
+        if self._kept is None:
+            return 0
+        n = self._kept.steps_done
+        if self._warm is None:
+            self._warm, self._t_warm = self._kept, self._t_kept
+            self._warm.stage = "warmup"
+        else:
+            self._warm.absorb(self._kept)
+            self._t_warm += self._t_kept
+        self._kept, self._t_kept = None, 0.0
+        return n
+
+    def widen(self, draws: list[np.ndarray], effective_fraction: float = 0.25) -> dict:
         """Widen the Gaussian approximation where warm-up ``draws`` (one array per chain) are wider.
 
         See :func:`proposals.laplace.widening.widened_by_draws`; the moves are
@@ -310,7 +334,8 @@ class GaussianPhases:
         """
         if self.approx is None:
             return {"ratios": [], "largest": None, "edge": None, "n_draws": 0}
-        found = widened_by_draws(self.approx, [np.asarray(d) for d in draws])
+        found = widened_by_draws(self.approx, [np.asarray(d) for d in draws],
+                                 effective_fraction=effective_fraction)
         self.approx = found.approx
         self._build_proposal()
         return {"ratios": [float(r) for r in found.ratios], "largest": found.largest,

@@ -280,6 +280,35 @@ class ChainRecorder:
                                                                              n_kept)
         self._last = time.perf_counter()  # the pause between rounds is no step's time
 
+    def absorb(self, other: ChainRecorder) -> None:
+        """Append the steps ``other`` recorded after this recorder's (same layout and thinning).
+
+        Used when draws first meant to be kept become warm-up (the sampler was
+        re-adapted after them): the warm-up record then holds every step run.
+        """
+        if other.layout.size != self.layout.size or other.thin != self.thin:
+            raise ValueError("absorb: the recorders differ in layout or thinning")
+        n0, n, k0, k = self.steps_done, other.steps_done, self._k, other._k
+        self.n = max(self.n, n0)
+        self.extend(n0 + n - self.n)
+        names = {i: self._names.setdefault(name, len(self._names))
+                 for name, i in other._names.items()}
+        remap = np.array([names[i] for i in range(len(names))], np.int32)
+        for mine, theirs in ((self._lp, other._lp), (self._lm, other._lm), (self._li, other._li),
+                             (self._acc, other._acc), (self._rej, other._rej),
+                             (self._dt, other._dt)):
+            mine[n0:n0 + n] = theirs[:n]
+        self._prop[n0:n0 + n] = remap[other._prop[:n]] if n else []
+        self._samples[k0:k0 + k] = other._samples[:k]
+        self._sample_step[k0:k0 + k] = other._sample_step[:k] + n0
+        self._k, self.steps_done = k0 + k, n0 + n
+        for attr, key in (("best_image", "log_lik_img"), ("best_landmarks", "log_lik_lm"),
+                          ("best_posterior", "log_posterior")):
+            theirs = getattr(other, attr)
+            if getattr(theirs, key) > getattr(getattr(self, attr), key):
+                setattr(self, attr, theirs._replace(step=theirs.step + n0))
+        self._last = time.perf_counter()
+
     def record(self, seconds: float = 0.0) -> ChainRecord:
         """Return the record of the steps done so far."""
         n, k = self.steps_done, self._k

@@ -207,6 +207,37 @@ def test_recorder_thins_and_tracks_best():
     assert back.pose == r.best_image.params.pose and back.camera == r.best_image.params.camera
 
 
+def test_absorbed_recorders_equal_one_recorder_of_every_step():
+    """Warm-up that absorbs later draws records exactly what one recorder of all steps would."""
+    target = ToyTarget()
+    start = fit_to_image_size(default_square(), 32, 32)._replace(momo=MoMoCoefficients.zeros(2, 2, 1))
+    layout = ParamLayout.for_params(start)
+    state = init(start, target)
+    yaw_move = mixture((1.0, Rotation("yaw", 0.6)))
+    both = mixture((1.0, Rotation("yaw", 0.6)), (1.0, FocalScaling(0.25)))
+    whole = ChainRecorder(layout, 0, 3, state, stage="warmup")
+    first = ChainRecorder(layout, 0, 3, state, stage="warmup")
+    second = ChainRecorder(layout, 0, 3, state, stage="image")
+    rng_a, rng_b = np.random.default_rng(5), np.random.default_rng(5)
+    s_a, s_b = state, state
+    # the second part uses a proposal the first never did: its names must be re-indexed
+    for n, prop, mine in ((99, yaw_move, first), (250, both, second)):  # thinning in phase
+        off = whole.steps_done
+        whole.extend(n)
+        s_a = run(rng_a, s_a, target, prop, n,
+                  callback=lambda i, st, info, off=off: whole(off + i, st, info))
+        mine.extend(n)
+        s_b = run(rng_b, s_b, target, prop, n, callback=mine)
+    first.absorb(second)
+    a, b = whole.record(), first.record()
+    assert b.steps == a.steps == 349 and b.stage == "warmup"
+    for name in ("sample_step", "samples", "log_prior", "log_lik_img", "accepted", "rejected_by"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert [a.proposal_names[i] for i in a.proposal] == [b.proposal_names[i] for i in b.proposal]
+    assert b.best_image.step == a.best_image.step
+    assert b.best_image.log_lik_img == a.best_image.log_lik_img
+
+
 @pytest.fixture(scope="module")
 def small_model():
     return small_face_model()
