@@ -92,3 +92,32 @@ def test_widening_splits_the_warmup_and_is_recorded(case):
         assert all(1.0 < r <= 9.0 for r in f["ratios"])
     for c in res.chains:
         assert c.warmup.steps == 100 and c.stage2.steps == 50
+
+
+@pytest.mark.parametrize("widens", [False, True])
+def test_widening_from_kept_draws_restarts_them_only_when_it_widens(case, monkeypatch, widens):
+    """``widen_at``: widened kept draws become warm-up and the kept chain starts again."""
+    import mcmcfit.fitting.gaussian_stage as stage
+    from proposals.laplace.widening import Widening
+
+    def fake(approx, draws, **kw):
+        assert len(draws) == 2 and kw["effective_fraction"] > 0  # every chain's draws
+        ratios = np.array([3.0]) if widens else np.zeros(0)
+        return Widening(approx, ratios, np.zeros((approx.size, ratios.size)), 3.0, 2.0,
+                        sum(len(d) for d in draws))
+
+    monkeypatch.setattr(stage, "widened_by_draws", fake)
+    model, image, clicks = case
+    cfg = _cfg(parallel=False, widen_at=50, steps=100, warmup_steps=100, check_every=50,
+               landmark_steps=100, stop_when_converged=False)
+    res = fit(image, clicks, model, config=cfg, seed=5)
+    found = res.stopping["widening_kept"]
+    assert found["ratios"] == ([3.0] if widens else [])
+    restarted = 50 if widens else 0
+    assert found["restarted_after"] == restarted
+    for c in res.chains:
+        assert c.stage2.steps == 100
+        assert c.warmup.steps == 100 + (restarted + 100 if widens else 0)
+        # the absorbed draws keep their step indices after the warm-up's
+        assert np.all(np.diff(c.warmup.sample_step) > 0)
+    assert [ch.get("restarted", False) for ch in res.stopping["checks"]][:1] == [widens]
