@@ -17,10 +17,9 @@ from mcmcfit.targets.priors import PriorConfig
 
 __all__ = ["GAUSSIAN_WARMUP", "FitConfig"]
 
-#: Default warm-up steps per chain of the Gaussian sampler. Its chains start from a draw of
-#: the Laplace approximation, already in the posterior's bulk: the warm-up only adapts the
-#: step sizes (two windows). On the demo face 500 steps converged as fast as 1000 did
-#: (5,000 kept steps against 5,500-6,000) and saved ~20 s.
+#: Default warm-up steps per chain of the Gaussian sampler (its chains start in the bulk,
+#: from a draw of the Laplace approximation: the warm-up only adapts the step sizes). On
+#: the demo face 500 steps converged as fast as 1000 did and saved ~20 s.
 GAUSSIAN_WARMUP = 500
 
 
@@ -120,8 +119,7 @@ class FitConfig:
         many kept steps that has not passed, widen the approximation where the
         kept draws of all chains are clearly wider; if any direction is
         widened, those draws become warm-up, the step sizes are re-adapted for
-        100 steps and the kept draws start again (0: never). A posterior close
-        to its Laplace approximation widens nothing and loses no draws.
+        100 steps and the kept draws start again (0: never).
     stop_when_converged : bool
         End the image stage at the first check where every monitored quantity
         has rank-normalised split R-hat < 1.01 and bulk- and tail-ESS >= 400.
