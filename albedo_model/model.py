@@ -9,7 +9,11 @@ The albedo parts may carry a per-vertex, per-channel residual variance (what
 the model cannot represent, estimated out of sample when it was built):
 :attr:`MorphableModel.albedo_residual_variance`.
 
-This module imports only :mod:`albedo_model.pca` and :mod:`albedo_model.errors`.
+A model may carry texture coordinates (:class:`~albedo_model.uv_atlas.UVAtlas`), to bake
+per-vertex values into texture images.
+
+This module imports only :mod:`albedo_model.pca`, :mod:`albedo_model.uv_atlas` and
+:mod:`albedo_model.errors`.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import numpy as np
 
 from albedo_model.errors import InputError
 from albedo_model.pca import PCAPart, _readonly
+from albedo_model.uv_atlas import UVAtlas
 
 __all__ = ["MorphableModel", "ModelCoefficients", "vertex_normals"]
 
@@ -115,6 +120,8 @@ class MorphableModel:
         Vertex ``i`` is the mirror image of vertex ``symmetry[i]``.
     metadata : mapping of str to str
         Colour space, gamma convention, provenance, ...
+    uv_atlas : UVAtlas, optional
+        Texture coordinates of the reference mesh's triangles.
     """
 
     vertices: np.ndarray
@@ -127,6 +134,7 @@ class MorphableModel:
     landmarks: Mapping[str, np.ndarray] = dataclasses.field(default_factory=dict)
     symmetry: np.ndarray | None = None
     metadata: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    uv_atlas: UVAtlas | None = None
 
     def __post_init__(self) -> None:
         """Validate the fields and store read-only, normalised copies of them."""
@@ -165,6 +173,10 @@ class MorphableModel:
         object.__setattr__(self, "vertices", _readonly(v))
         object.__setattr__(self, "triangles", _readonly(t.astype(np.int32)))
         object.__setattr__(self, "metadata", {str(k): str(x) for k, x in dict(self.metadata).items()})
+        if self.uv_atlas is not None:
+            if not isinstance(self.uv_atlas, UVAtlas):
+                raise InputError(f"uv_atlas must be a UVAtlas, got {type(self.uv_atlas).__name__}")
+            self.uv_atlas.check_mesh(t, len(v))
 
     # -- sizes ---------------------------------------------------------------
     @property

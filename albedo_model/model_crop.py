@@ -6,7 +6,8 @@ W_r^T)``: keeping the rows of the kept vertices is the *exact* marginal of the
 full model, with the same standard-normal coefficients. :func:`crop_model`
 keeps the chosen vertices (in their order in the full model), the triangles
 whose three corners are kept (reindexed), the rows of every part, the
-landmarks on kept vertices and the symmetry map among them, and says in the
+landmarks on kept vertices, the symmetry map among them and the UV atlas of the kept
+triangles, and says in the
 metadata what it was cropped from and how.
 
 Orthonormality. :class:`~albedo_model.pca.PCAPart` documents orthonormal basis
@@ -223,7 +224,8 @@ def crop_model_with_maps(
                          f"{max(model.ranks.values())}")
     remap = np.full(model.n_vertices, -1, np.int64)
     remap[idx] = np.arange(idx.size)
-    tri = model.triangles[np.all(kept[model.triangles], axis=1)]
+    kept_tri = np.all(kept[model.triangles], axis=1)
+    tri = model.triangles[kept_tri]
     rows = vertex_rows(idx)
 
     parts, maps = {}, {}
@@ -247,6 +249,7 @@ def crop_model_with_maps(
     cropped = dataclasses.replace(
         model, vertices=model.vertices[idx], triangles=remap[tri], **parts, landmarks=landmarks,
         symmetry=None if symmetry is None else remap[symmetry[idx]], metadata=metadata,
+        uv_atlas=None if model.uv_atlas is None else model.uv_atlas.restricted(kept_tri),
     )
     return ModelCrop(cropped, idx, maps)
 

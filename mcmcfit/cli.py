@@ -21,8 +21,8 @@ from albedo_model.errors import AlbedoModelError
 __all__ = ["main", "build_parser"]
 
 #: Command modules under ``mcmcfit.commands``, in help order.
-COMMAND_MODULES = ("model", "params", "render", "landmarks", "fit", "demo", "pipeline", "batch",
-                   "bench", "evaluate")
+COMMAND_MODULES = ("model", "params", "render", "landmarks", "fit", "demo", "texture", "pipeline",
+                   "batch", "bench", "evaluate")
 
 
 def build_parser() -> argparse.ArgumentParser:

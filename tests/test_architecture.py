@@ -46,7 +46,7 @@ ALLOWED = {
 #: - ``albedo_model``: the root modules (params, model, pca, camera, sh, errors,
 #:   default_model) are the bottom; shading is pure JAX over them; the
 #:   renderer (ray casting + caches) drives shading; the file formats read and
-#:   write the root types.
+#:   write the root types; textures are baked with the ray caster.
 #: - ``pipeline``: texturing and modelling are independent tools; the
 #:   lightstage processing uses both; the synthetic lightstage (head, then
 #:   subjects and capture simulator) builds on the real lightstage code.
@@ -60,6 +60,7 @@ LAYERS: dict[str, list[list[str]]] = {
         ["albedo_model"],
         ["albedo_model.shading"],
         ["albedo_model.render", "albedo_model.io"],
+        ["albedo_model.texture"],
     ],
     "proposals": [
         ["proposals"],

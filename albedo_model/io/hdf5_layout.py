@@ -15,10 +15,12 @@ This module imports only :mod:`albedo_model.errors`, :mod:`albedo_model.pca` and
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from pathlib import Path
 from typing import Any
 
 import h5py
@@ -203,6 +205,32 @@ class H5Reader:
             np.ascontiguousarray(points.T.astype(np.float32, copy=False)),
             np.ascontiguousarray(cells.T.astype(np.int32)),
         )
+
+
+@contextlib.contextmanager
+def open_h5(path: str | os.PathLike) -> Iterator[H5Reader]:
+    """Open an HDF5 file for checked reading.
+
+    Raises
+    ------
+    InputError
+        The file does not exist.
+    FormatError
+        The file is not HDF5, is truncated, or fails while being read.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{p}: file not found")
+    try:
+        h5 = h5py.File(p, "r")
+    except OSError as exc:
+        raise FormatError(p, f"not a readable HDF5 file ({error_text(exc)})") from None
+    try:
+        yield H5Reader(h5, p)
+    except (OSError, KeyError, RuntimeError) as exc:
+        raise FormatError(p, f"cannot read the file ({error_text(exc)})") from None
+    finally:
+        h5.close()
 
 
 def read_pca_group(reader: H5Reader, group: str, n_vertices: int) -> PCAPart:

@@ -3,7 +3,8 @@
 Images are float arrays in [0, 1]; 8-bit files are value/255 (scalismo's
 convention), 16-bit files value/65535. :func:`read_image_pixels` reads the
 same RGB pixels without that conversion, keeping their stored 8- or 16-bit
-integers (no float copy of a 10-megapixel photograph).
+integers (no float copy of a 10-megapixel photograph). 16-bit PNGs are decoded
+with pypng: Pillow (imageio's default) reduces 16-bit RGB to 8 bits.
 
 This module imports only :mod:`albedo_model.errors` and
 :mod:`albedo_model.io.atomic`.
@@ -34,16 +35,35 @@ def _read_rgb(path: str | os.PathLike, *, name_stored_shape: bool) -> np.ndarray
     if not p.is_file():
         raise InputError(f"{p}: file not found")
     try:
-        stored = np.asarray(iio.imread(p))
-    except Exception as exc:  # imageio raises many types for corrupt files
+        stored = _png16(p)
+        if stored is None:
+            stored = np.asarray(iio.imread(p))
+    except Exception as exc:  # imageio and pypng raise many types for corrupt files
         raise FormatError(p, f"not a readable image ({type(exc).__name__})") from None
     if stored.dtype not in (np.uint8, np.uint16) and stored.dtype.kind != "f":
         raise FormatError(p, f"unsupported pixel type {stored.dtype}")
+    if stored.ndim == 3 and stored.shape[2] == 2:  # grey + alpha
+        stored = stored[..., 0]
     a = np.repeat(stored[..., None], 3, axis=2) if stored.ndim == 2 else stored
     if a.ndim != 3 or a.shape[2] not in (3, 4) or min(a.shape[:2]) < 1:
         shape = stored.shape if name_stored_shape else a.shape
         raise FormatError(p, f"unsupported image shape {shape}")
     return a[..., :3] if a.shape[2] == 4 else a
+
+
+def _png16(path: Path) -> np.ndarray | None:
+    """Read a 16-bit PNG's samples as uint16 (H, W[, planes]); None for any other file."""
+    with open(path, "rb") as fh:
+        head = fh.read(25)
+    # PNG signature, then the IHDR chunk: bit depth is byte 24
+    if head[:8] != b"\x89PNG\r\n\x1a\n" or len(head) < 25 or head[24] != 16:
+        return None
+    import png
+
+    width, height, rows, info = png.Reader(filename=str(path)).asDirect()
+    data = np.vstack([np.asarray(r, np.uint16) for r in rows])
+    planes = info["planes"]
+    return data.reshape(height, width, planes) if planes > 1 else data.reshape(height, width)
 
 
 def read_image_pixels(path: str | os.PathLike) -> np.ndarray:

@@ -19,7 +19,8 @@ fixed-length strings of shape (1,) or (), version 0.8 parts (columns
 ``vertices`` are the shape representer points (which need not equal the shape
 mean). Project extras live under ``/metadata/mcmcfit`` (ignored by scalismo):
 ``info`` (JSON: layout, shared_albedo, metadata dict, exact float64 noise
-variances) and ``symmetry`` (int32 (n,)), and, for parts that have one, the
+variances), ``symmetry`` (int32 (n,)), ``uv`` (the UV atlas: float32 ``coordinates``
+(t, 2), int32 ``triangles`` (m, 3)), and, for parts that have one, the
 per-row residual variance (:attr:`~albedo_model.pca.PCAPart.residual_variance`)
 as float32 (3n,) datasets ``residual_variance/<group>`` (``diffuseAlbedo``,
 ``specularAlbedo``, ``color``); files without them (AlbedoMM, BFM) give parts
@@ -35,23 +36,21 @@ This module imports only :mod:`albedo_model.errors`, :mod:`albedo_model.model`,
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-from collections.abc import Iterator, Mapping
-from pathlib import Path
+from collections.abc import Mapping
 from typing import NamedTuple
 
 import h5py
 import numpy as np
 
-from albedo_model.errors import FormatError, InputError
+from albedo_model.errors import InputError
 from albedo_model.io.atomic import atomic_path
 from albedo_model.io.hdf5_layout import (
     H5Reader,
     Representer,
-    error_text,
     landmarks_to_json,
+    open_h5,
     parse_landmarks_json,
     parse_tlms3d_text,
     read_pca_group,
@@ -61,14 +60,17 @@ from albedo_model.io.hdf5_layout import (
 )
 from albedo_model.model import MorphableModel
 from albedo_model.pca import PCAPart
+from albedo_model.uv_atlas import UVAtlas
 
 __all__ = [
     "AlbedoPart", "open_h5", "h5_layout", "read_model_h5", "write_model_h5",
-    "read_albedo_part", "write_albedo_part", "INFO_PATH", "SYMMETRY_PATH", "RESIDUAL_PATH",
+    "read_albedo_part", "write_albedo_part", "INFO_PATH", "SYMMETRY_PATH", "UV_PATH",
+    "RESIDUAL_PATH",
 ]
 
 INFO_PATH = "/metadata/mcmcfit/info"
 SYMMETRY_PATH = "/metadata/mcmcfit/symmetry"
+UV_PATH = "/metadata/mcmcfit/uv"
 RESIDUAL_PATH = "/metadata/mcmcfit/residual_variance"
 _INFO_FORMAT = "mcmcfit-model-info"
 _ALBEDO_GROUPS = ("diffuseAlbedo", "specularAlbedo")
@@ -94,32 +96,6 @@ class AlbedoPart(NamedTuple):
     specular: PCAPart
     landmarks: dict[str, np.ndarray]
     metadata: dict[str, str]
-
-
-@contextlib.contextmanager
-def open_h5(path: str | os.PathLike) -> Iterator[H5Reader]:
-    """Open an HDF5 file for checked reading.
-
-    Raises
-    ------
-    InputError
-        The file does not exist.
-    FormatError
-        The file is not HDF5, is truncated, or fails while being read.
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: file not found")
-    try:
-        h5 = h5py.File(p, "r")
-    except OSError as exc:
-        raise FormatError(p, f"not a readable HDF5 file ({error_text(exc)})") from None
-    try:
-        yield H5Reader(h5, p)
-    except (OSError, KeyError, RuntimeError) as exc:
-        raise FormatError(p, f"cannot read the file ({error_text(exc)})") from None
-    finally:
-        h5.close()
 
 
 def _read_info(reader: H5Reader) -> dict | None:
@@ -240,7 +216,7 @@ def read_model_h5(path: str | os.PathLike) -> MorphableModel:
                 shared_albedo=bool((info or {}).get("shared_albedo", True)),
                 landmarks=_read_landmarks(reader), symmetry=symmetry,
                 metadata=_metadata(reader, info, layout, colour[0].strip("/")),
-            )
+                uv_atlas=read_uv_atlas(reader, UV_PATH))
         except InputError as exc:
             raise reader.error(str(exc)) from None
 
@@ -279,6 +255,24 @@ def read_albedo_part(path: str | os.PathLike) -> AlbedoPart:
 
 # -- writing -----------------------------------------------------------------
 
+def read_uv_atlas(reader: H5Reader, group: str) -> UVAtlas | None:
+    """Read the UV atlas stored under ``group`` (``coordinates``, ``triangles``), or None."""
+    if not reader.has(group):
+        return None
+    uv = reader.array(f"{group}/coordinates", ndim=2)
+    tri = reader.array(f"{group}/triangles", ndim=2, kind="iu")
+    try:
+        return UVAtlas(uv, tri)
+    except InputError as exc:
+        raise reader.error(f"{group}: {exc}") from None
+
+
+def write_uv_atlas(group: h5py.Group, atlas: UVAtlas) -> None:
+    """Write ``atlas`` into ``group``: float32 ``coordinates`` (t, 2), int32 ``triangles``."""
+    group.create_dataset("coordinates", data=atlas.uv.astype(np.float32))
+    group.create_dataset("triangles", data=atlas.uv_triangles.astype(np.int32))
+
+
 def _write_catalog(h5: h5py.File, groups: list[str]) -> None:
     cat = h5.create_group("catalog")
     top = cat.create_group("MorphableModel")
@@ -302,6 +296,7 @@ def _write_file(
     metadata: Mapping[str, str],
     shared_albedo: bool,
     symmetry: np.ndarray | None = None,
+    uv_atlas: UVAtlas | None = None,
 ) -> None:
     info = {
         "format": _INFO_FORMAT, "version": 1, "layout": layout,
@@ -322,6 +317,8 @@ def _write_file(
             write_text(ours, "info", json.dumps(info))
             if symmetry is not None:
                 ours.create_dataset("symmetry", data=np.asarray(symmetry, np.int32))
+            if uv_atlas is not None:
+                write_uv_atlas(ours.create_group("uv"), uv_atlas)
             for group, part in parts.items():
                 if part.residual_variance is not None:
                     ours.require_group("residual_variance").create_dataset(
@@ -358,7 +355,7 @@ def write_model_h5(
     _write_file(
         path, model.vertices, model.triangles, parts, layout=layout, landmarks=model.landmarks,
         metadata=model.metadata, shared_albedo=model.shared_albedo, symmetry=model.symmetry,
-    )
+        uv_atlas=model.uv_atlas)
 
 
 def write_albedo_part(

@@ -9,7 +9,7 @@ from the cached default model file on first use, deterministically, and cached
 beside it at :func:`albedo_model.io.model_files.default_face_model_path`, keyed
 by the default model's fingerprint and the crop's code.
 
-This module imports :mod:`albedo_model` (``default_model``, ``errors``, ``model``,
+This module imports :mod:`albedo_model` (``default_model``, ``errors``, ``model``, ``uv_atlas``,
 ``model_crop``, ``io.model_files``, ``io.momo_h5``) and
 :mod:`pipeline.synthetic.default_model`; :mod:`pipeline.synthetic.face_region`
 and :mod:`pipeline.synthetic.head.template_head` are imported when the crop is
@@ -32,6 +32,7 @@ from albedo_model.io.model_files import DEFAULT_FACE_MODEL, default_face_model_p
 from albedo_model.io.momo_h5 import read_model_h5, write_model_h5
 from albedo_model.model import MorphableModel
 from albedo_model.model_crop import crop_model
+from albedo_model.uv_atlas import compute_uv_atlas
 from pipeline.synthetic.default_model import default_model_fingerprint, ensure_default_model
 
 __all__ = ["build_default_face_model", "default_face_model_fingerprint",
@@ -39,7 +40,7 @@ __all__ = ["build_default_face_model", "default_face_model_fingerprint",
 
 #: Sources whose code determines the crop (besides the default model's own builder).
 _CROP_SOURCES = ("pipeline/synthetic/default_face_model.py", "pipeline/synthetic/face_region.py",
-                 "albedo_model/model_crop.py")
+                 "albedo_model/model_crop.py", "albedo_model/uv_atlas.py")
 
 
 def build_default_face_model(full: MorphableModel, *, source: str = "") -> MorphableModel:
@@ -78,7 +79,9 @@ def build_default_face_model(full: MorphableModel, *, source: str = "") -> Morph
     description = full.metadata.get("description", "mcmcfit built-in model")
     metadata = {**model.metadata, "description": f"{description}; face crop (no scalp, ears "
                                                  "or neck), the exact marginal of the full head"}
-    return dataclasses.replace(model, metadata=metadata)
+    # a UV atlas of its own: the head's atlas restricted to the face fills an eighth of a texture
+    return dataclasses.replace(model, metadata=metadata,
+                               uv_atlas=compute_uv_atlas(model.vertices, model.triangles))
 
 
 def default_face_model_fingerprint() -> str:

@@ -18,6 +18,7 @@ This module imports :mod:`albedo_model`; :mod:`pipeline.lightstage.colour`,
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import sys
@@ -30,6 +31,7 @@ import numpy as np
 from albedo_model.default_model import BUILD_VERSION, default_model_path
 from albedo_model.model import MorphableModel
 from albedo_model.pca import PCAPart
+from albedo_model.uv_atlas import compute_uv_atlas
 
 __all__ = ["DEFAULT_RANKS", "DEFAULT_SEED", "DEFAULT_SUBJECTS", "build_default_model",
            "build_model_from_subjects", "ensure_default_model"]
@@ -38,7 +40,7 @@ DEFAULT_SEED = 2020
 DEFAULT_SUBJECTS = 60
 DEFAULT_RANKS = {"shape": 40, "albedo": 50}
 _STAGES = ("template head", "shape and expression model", "synthetic subjects",
-           "albedo PCA", "writing")
+           "albedo PCA", "UV atlas", "writing")
 
 
 def _float32(part: PCAPart) -> PCAPart:
@@ -76,7 +78,8 @@ def build_default_model(
         Float32 parts, shared albedo coefficients, the albedo parts' leave-one-out
         residual variances, symmetry map, the template's Basel landmarks, and
         metadata (``synthetic``, colour space, gamma, seed; the provenance
-        records the residual variance's estimate and its RMS per channel).
+        records the residual variance's estimate and its RMS per channel), and a
+        UV atlas of the template head (:func:`albedo_model.uv_atlas.compute_uv_atlas`).
     """
     from pipeline.synthetic.head.shape_model import build_expression_model, build_shape_model
     from pipeline.synthetic.subjects import make_subjects
@@ -91,8 +94,10 @@ def build_default_model(
     say(_STAGES[2])
     subjects = make_subjects(head, n_subjects, seed)
     say(_STAGES[3])
-    return build_model_from_subjects(head, shape, expression, subjects, seed=seed,
-                                     albedo_rank=albedo_rank)
+    model = build_model_from_subjects(head, shape, expression, subjects, seed=seed,
+                                      albedo_rank=albedo_rank)
+    say(_STAGES[4])
+    return dataclasses.replace(model, uv_atlas=compute_uv_atlas(model.vertices, model.triangles))
 
 
 def build_model_from_subjects(
