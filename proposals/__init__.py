@@ -7,10 +7,11 @@ mixtures), ``pose``, ``coefficients``, ``color_transform`` (walks and the
 gain-light exchange), ``light``, ``light_solver`` (the SH least-squares light),
 ``light_conditional`` (the SH light's exact conditional), ``albedo_solver`` (the
 albedo conditional), ``gradient`` (preconditioned MALA and HMC on the geometry),
-``schedule`` (the default mixtures).
+``schedule`` (the default mixtures), ``joint`` (several images of one face: the
+joint state, single-image moves lifted to it, the shared albedo conditional).
 
 The package imports only :mod:`albedo_model` (camera, errors, params, sh). This file
-imports every module of the package but ``albedo_solver``, ``gradient`` and
+imports every module of the package but ``albedo_solver``, ``gradient``, ``joint`` and
 ``light_conditional``.
 """
 

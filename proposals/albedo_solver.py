@@ -36,7 +36,8 @@ from albedo_model.render.cache_table import Kept
 from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = ["SATURATION_LIMIT", "AlbedoConditional", "AlbedoData", "AlbedoSystem",
-           "LightAlbedoExchange", "albedo_system", "independence_draw"]
+           "LightAlbedoExchange", "albedo_system", "conditional_terms", "independence_draw",
+           "solve_conditional"]
 
 #: Linear intensity at and above which a pixel counts as clipped (by the camera in a
 #: target, by the clamp at 1 in a render).
@@ -112,9 +113,14 @@ def albedo_system(jac, mean, bright, target, off, rank, n_points: int,
 AlbedoData = Callable[[ProposalState], "AlbedoSystem | None"]
 
 
-def _conditional(system: AlbedoSystem, scale: float, sigma: float):
-    """``(mean (k,), cholesky L of the precision (k, k))`` for the light scaled by ``scale``.
+def conditional_terms(system: AlbedoSystem, scale: float,
+                      sigma: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """Return the likelihood's share of the conditional for the light scaled by ``scale``.
 
+    Returns ``(P, h)``: the precision the pixels add to the prior's identity,
+    ``w s^2 A^T A / sigma^2`` (k, k), and the information vector
+    ``w s A^T (t - s r0 - o) / sigma^2`` (k,); None when every pixel is clamped.
+    Images with independent noise add their terms (:func:`solve_conditional`).
     Pixels whose reference render reaches the clamp are dropped; their
     contribution is subtracted from the precomputed normal-equation terms.
     """
@@ -122,7 +128,6 @@ def _conditional(system: AlbedoSystem, scale: float, sigma: float):
     n_keep = int(keep.sum())
     if n_keep == 0:
         return None
-    k = system.jac.shape[2]
     if n_keep > system.n_points:  # a subset: recompute over it
         idx = np.flatnonzero(keep)
         idx = idx[np.argsort(system.rank[idx])[: system.n_points]]
@@ -138,11 +143,21 @@ def _conditional(system: AlbedoSystem, scale: float, sigma: float):
             gram, jt_t, jt_m, jt_o = gram - g, jt_t - t, jt_m - m, jt_o - o
         weight = 1.0
     a = weight * system.weight / (sigma * sigma)
-    lam = np.eye(k) + (a * scale * scale) * gram
+    return (a * scale * scale) * gram, (a * scale) * (jt_t - scale * jt_m - jt_o)
+
+
+def solve_conditional(precision: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``(mean (k,), cholesky L of I + precision)``: the conditional under N(0, I)."""
+    lam = np.eye(len(h)) + precision
     chol = np.linalg.cholesky(lam)
-    h = (a * scale) * (jt_t - scale * jt_m - jt_o)
     mean = np.linalg.solve(chol.T, np.linalg.solve(chol, h))
     return mean, chol
+
+
+def _conditional(system: AlbedoSystem, scale: float, sigma: float):
+    """``(mean (k,), cholesky L of the precision (k, k))`` for the light scaled by ``scale``."""
+    terms = conditional_terms(system, scale, sigma)
+    return None if terms is None else solve_conditional(*terms)
 
 
 def _log_density_terms(c: np.ndarray, cond) -> float:

@@ -17,6 +17,9 @@ noise_model
 face
     :class:`~mcmcfit.targets.face.FaceTarget`: renderer + likelihoods + prior, the
     sampler's target.
+joint
+    :class:`~mcmcfit.targets.joint.JointTarget`: several photographs of one face (one
+    face target per image, the identity's prior once).
 gradient
     The posterior's gradient in shape, expression, pose and camera (gradient moves).
 curvature
@@ -25,5 +28,5 @@ curvature
 
 The package imports :mod:`albedo_model` (camera, errors, model, params, scene_vector,
 render.differentiable, render.jacobian, render.pixel_cast, render.renderer,
-shading.image_formation) and :mod:`proposals.gradient`. This file imports nothing.
+shading.image_formation) and :mod:`proposals` (gradient, joint). This file imports nothing.
 """
