@@ -7,7 +7,8 @@ expression, light, colour transform and specular exponent are each image's own.
 per image whose shared fields are the *same arrays* in every image, so that
 each image keeps its own renderer and caches unchanged.
 
-* :class:`ForImage` applies any single-image proposal to image ``i``; when
+* :class:`ForImage` applies any single-image proposal to image ``i`` (:func:`lift`
+  a whole schedule, leaf by leaf); when
   the move changes a shared block the new values are copied into every image.
   The map from image ``i``'s parameters to the joint state is one-to-one with
   the other images' own fields held, so the inner proposal's ``log_q_ratio``
@@ -38,9 +39,18 @@ from proposals.albedo_solver import (
     independence_draw,
     solve_conditional,
 )
-from proposals.base import Move, Proposal, ProposalState, check_scale, no_move
+from proposals.base import (
+    Mixture,
+    Move,
+    Proposal,
+    ProposalState,
+    check_scale,
+    mixture,
+    no_move,
+)
 
-__all__ = ["SHARED", "ForImage", "JointParameter", "SharedAlbedoConditional", "image_state"]
+__all__ = ["SHARED", "ForImage", "JointParameter", "SharedAlbedoConditional", "image_state",
+           "lift"]
 
 #: The blocks every image of a joint fit shares: the identity.
 SHARED = Block.SHAPE | Block.ALBEDO
@@ -122,7 +132,21 @@ class ForImage:
         if move.touched == Block.NONE:
             return no_move(joint, self.name)
         return Move(joint.with_image(self.image, move.params, move.touched), move.log_q_ratio,
-                    move.touched, self.name, move.joint)
+                    move.touched, f"{move.name}@{self.image}", move.joint)
+
+
+def lift(image: int, proposal: Proposal) -> Proposal:
+    """Lift a single-image proposal to image ``image``, leaf by leaf (mixtures kept as mixtures).
+
+    The leaves of the result are :class:`ForImage` wrappers named ``<leaf>@<image>``
+    with their leaf's blocks, so that per-leaf statistics and step-size families
+    work as for the single-image schedule.
+    """
+    if isinstance(proposal, Mixture):
+        return mixture(*((float(w), lift(image, c))
+                         for w, c in zip(proposal.weights, proposal.components)),
+                       name=f"{proposal.name}@{image}")
+    return ForImage(image, proposal)
 
 
 @dataclass(eq=False)

@@ -1,8 +1,9 @@
 """``mcmcfit bench``: benchmarks of the hot paths.
 
-``mcmcfit bench render`` (ms per sampler step per proposal kind, against the naive path) and
+``mcmcfit bench render`` (ms per sampler step per proposal kind, against the naive path),
 ``mcmcfit bench fit`` (the default schedule on the demo case: time per stage and proposal kind,
-accuracy against time).
+accuracy against time) and ``mcmcfit bench joint`` (ms per step of a joint fit of 1, 2, 4
+photographs of one face).
 
 This module imports :mod:`albedo_model.errors`; :mod:`mcmcfit.bench`,
 :mod:`mcmcfit.fitting.config` and :mod:`mcmcfit.jobs.model_spec` are imported when a
@@ -16,7 +17,8 @@ import sys
 
 from albedo_model.errors import InputError
 
-__all__ = ["add_fit_arguments", "add_render_arguments", "register", "run_fit", "run_render"]
+__all__ = ["add_fit_arguments", "add_render_arguments", "register", "run_fit", "run_joint",
+           "run_render"]
 
 
 def _int_list(text: str, what: str, minimum: int) -> list[int]:
@@ -97,7 +99,7 @@ def _format_mixing(figures: dict) -> str:
 
 
 def register(subparsers) -> None:
-    """Add ``bench`` with its ``render`` and ``fit`` actions."""
+    """Add ``bench`` with its ``render``, ``fit`` and ``joint`` actions."""
     parser = subparsers.add_parser(
         "bench", help="benchmarks of the hot paths",
         description="Benchmarks of the hot paths.",
@@ -122,6 +124,24 @@ def register(subparsers) -> None:
     )
     add_fit_arguments(p)
     p.set_defaults(func=run_fit)
+    p = sub.add_parser(
+        "joint", help="ms per sampler step of a joint fit of 1, 2, 4 photographs of one face",
+        description="Render one identity of the model in up to four scenes (yaw -25, 30, 0, "
+        "15 deg, side light in every second), build each image's targets and random-walk "
+        "schedule as a fit does, lift them to the joint posterior (the albedo's conditional "
+        "over every image) and time sampler steps per number of images, against one image "
+        "and against the plain single-image target.",
+    )
+    p.add_argument("--images", type=lambda t: _int_list(t, "numbers of images", 1),
+                   default=[1, 2, 4], metavar="N,N,...", help="numbers of images (default 1,2,4)")
+    p.add_argument("--steps", type=int, default=600, help="timed steps each (default 600)")
+    p.add_argument("--warmup", type=int, default=60, help="untimed steps first (default 60)")
+    p.add_argument("--size", type=int, default=250, help="image size in pixels (default 250)")
+    p.add_argument("--seed", type=int, default=0, help="the identity and the sampler (default 0)")
+    p.add_argument("--model", default="default", help="model file or 'default' (default)")
+    p.add_argument("--json", metavar="F.json", default=None, help="write the figures as JSON")
+    p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
+    p.set_defaults(func=run_joint)
 
 
 def run_render(args: argparse.Namespace) -> int:
@@ -196,5 +216,28 @@ def run_fit(args: argparse.Namespace) -> int:
         print(f"wrote {args.output}")
     if args.json is not None:
         write_json(bench, args.json, extra={"mixing": mixing} if mixing else None)
+        print(f"wrote {args.json}")
+    return 0
+
+
+def run_joint(args: argparse.Namespace) -> int:
+    """Run the joint-fit step benchmark and print its table."""
+    import json
+    from pathlib import Path
+
+    from mcmcfit.bench.joint_bench import format_joint_bench, run_joint_bench
+    from mcmcfit.jobs.model_spec import load_model_spec
+
+    if args.size < 32:
+        raise InputError(f"--size must be >= 32, got {args.size}")
+    if args.json is not None and not Path(args.json).parent.exists():
+        raise InputError(f"{Path(args.json).parent}: output folder does not exist")
+    model = load_model_spec(args.model, progress=not args.quiet)
+    log = None if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
+    result = run_joint_bench(model, images=args.images, steps=args.steps, warmup=args.warmup,
+                             size=args.size, seed=args.seed, log=log)
+    print(format_joint_bench(result))
+    if args.json is not None:
+        Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
         print(f"wrote {args.json}")
     return 0

@@ -131,10 +131,14 @@ def register(subparsers) -> None:
         "mean.rps, fit.png, albedo and uncertainty maps, mesh.ply, chain.h5, summary.json, "
         "report.html. The folder appears complete or not at all.",
     )
-    p.add_argument("image", help="photograph (PNG or JPEG, sRGB)")
-    p.add_argument("--landmarks", metavar="F.tlms|F.pts",
-                   help="2-D landmarks: TLMS (Basel names) or iBUG 68-point .pts (default: "
-                   "detected with MediaPipe Face Mesh, the optional extra mcmcfit[landmarks])")
+    p.add_argument("image", nargs="+",
+                   help="photograph (PNG or JPEG, sRGB); several photographs of one person are "
+                   "fitted jointly: one shape and albedo, each its own pose, camera, expression "
+                   "and light")
+    p.add_argument("--landmarks", metavar="F.tlms|F.pts", nargs="+",
+                   help="2-D landmarks, one file per photograph in the same order: TLMS (Basel "
+                   "names) or iBUG 68-point .pts (default: detected with MediaPipe Face Mesh, "
+                   "the optional extra mcmcfit[landmarks])")
     p.add_argument("--face-box", metavar="x,y,w,h",
                    help="face box in pixels, used instead of landmarks")
     p.add_argument("--face", type=int, default=None, metavar="N",
@@ -149,16 +153,31 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``mcmcfit fit`` and print where the result went; return the exit code."""
-    from mcmcfit.jobs.fit_job import run_fit_job
+    from albedo_model.errors import InputError
     from mcmcfit.fitting.progress import FitProgressBar
+    from mcmcfit.jobs.fit_job import run_fit_job
 
     cfg = config_from_args(args)
     out = Path(args.output)
+    if args.landmarks is not None and len(args.landmarks) != len(args.image):
+        raise InputError(f"{len(args.image)} photograph(s) but {len(args.landmarks)} landmark "
+                         "file(s): give one per photograph, in the same order")
+    if len(args.image) > 1 and args.face_box is not None:
+        raise InputError("a joint fit of several photographs needs landmarks, not --face-box")
     with cli_warnings("fit"), FitProgressBar(cfg.chains, disable=args.quiet) as bar:
-        summary = run_fit_job(args.image, out, landmarks_path=args.landmarks,
-                              face_box=args.face_box, model=args.model, config=cfg,
-                              seed=args.seed, progress=bar, force=args.force,
-                              model_progress=not args.quiet, face=args.face)
+        if len(args.image) > 1:
+            from mcmcfit.jobs.joint_job import run_joint_fit_job
+
+            summary = run_joint_fit_job(args.image, out, landmarks_paths=args.landmarks,
+                                        model=args.model, config=cfg, seed=args.seed,
+                                        progress=bar, force=args.force,
+                                        model_progress=not args.quiet, face=args.face)
+        else:
+            summary = run_fit_job(args.image[0], out, landmarks_path=args.landmarks[0]
+                                  if args.landmarks else None, face_box=args.face_box,
+                                  model=args.model, config=cfg, seed=args.seed, progress=bar,
+                                  force=args.force, model_progress=not args.quiet,
+                                  face=args.face)
     print(_done_line(out, summary))
     return 0
 
@@ -167,5 +186,7 @@ def _done_line(out: Path, summary: dict) -> str:
     t = summary.get("timings", {})
     rmse = summary.get("landmark_rmse_px")
     lm = f", landmark RMSE {rmse:.2f} px" if rmse is not None else ""
+    where = (f"open {out / 'report.html'}" if "report.html" in summary.get("files", [])
+             else f"{len(summary.get('images', []))} photographs fitted jointly")
     return (f"wrote {out}/ ({len(summary.get('files', []))} files; fit {t.get('total_s', 0):.1f} s"
-            f"{lm}); open {out / 'report.html'}")
+            f"{lm}); {where}")

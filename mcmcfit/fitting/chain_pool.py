@@ -1,7 +1,7 @@
 """The chains of one fit, run in this process or in parallel worker processes.
 
 Both pools expose one call, ``pool.call(method, *args)``: every chain's
-:class:`~mcmcfit.fitting.chain_session.ChainSession` runs ``method(*args)``
+:func:`~mcmcfit.fitting.sessions.chain_session` runs ``method(*args)``
 and the results come back in chain order. The driver calls them in lockstep
 (landmarks, warm-up, noise, rounds of draws), so a fit gives the same chains
 whichever pool runs them; only wall time differs.
@@ -13,7 +13,7 @@ the :class:`~mcmcfit.fitting.problem.FitProblem` once (model and image
 included). A worker that fails sends its exception back; the pool raises
 :class:`WorkerError` in the parent and stops every worker.
 
-This module imports :mod:`mcmcfit.fitting.chain_session` and
+This module imports :mod:`mcmcfit.fitting.sessions` and
 :mod:`mcmcfit.fitting.problem` (the workers run :mod:`mcmcfit.fitting.chain_worker`).
 """
 
@@ -31,7 +31,7 @@ from multiprocessing.connection import Listener
 
 import numpy as np
 
-from mcmcfit.fitting.chain_session import ChainSession
+from mcmcfit.fitting.sessions import chain_session
 from mcmcfit.fitting.problem import FitProblem
 
 __all__ = ["LocalPool", "ProcessPool", "WorkerError", "chain_pool"]
@@ -46,7 +46,8 @@ class LocalPool:
 
     def __init__(self, problem: FitProblem, seeds: Sequence[np.random.SeedSequence], *,
                  threads: int | None = None):
-        self.sessions = [ChainSession(problem, i, s, threads=threads) for i, s in enumerate(seeds)]
+        self.sessions = [chain_session(problem, i, s, threads=threads)
+                         for i, s in enumerate(seeds)]
 
     def call(self, method: str, *args, **kwargs) -> list:
         """Run ``session.method(*args, **kwargs)`` for every chain; results in chain order."""

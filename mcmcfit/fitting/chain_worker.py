@@ -2,12 +2,12 @@
 
 Started by :class:`mcmcfit.fitting.chain_pool.ProcessPool`. It connects to the
 parent's socket (authenticated with the key in ``MCMCFIT_WORKER_KEY``),
-receives ``(problem, index, seed)``, builds its
-:class:`~mcmcfit.fitting.chain_session.ChainSession` and then runs
+receives ``(problem, index, seed)``, builds its session
+(:func:`mcmcfit.fitting.sessions.chain_session`: a single or a joint fit's) and then runs
 ``(method, args, kwargs)`` requests until it receives None, answering each with
 ``("ok", result)`` or ``("error", traceback text)``.
 
-This module imports :mod:`mcmcfit.fitting.chain_session`.
+This module imports :mod:`mcmcfit.fitting.sessions`.
 """
 
 from __future__ import annotations
@@ -28,10 +28,10 @@ def main(address: str) -> int:
                   authkey=bytes.fromhex(os.environ.get("MCMCFIT_WORKER_KEY", "")))
     try:
         with threadpool_limits(limits=1, user_api="blas"):
-            from mcmcfit.fitting.chain_session import ChainSession
+            from mcmcfit.fitting.sessions import chain_session
 
             problem, index, seed = conn.recv()
-            session = ChainSession(problem, index, seed, threads=1)
+            session = chain_session(problem, index, seed, threads=1)
             conn.send(("ok", None))
             while True:
                 msg = conn.recv()

@@ -35,7 +35,6 @@ from threadpoolctl import threadpool_limits
 
 from albedo_model.errors import InputError
 from albedo_model.model import MorphableModel
-from albedo_model.params import RenderParameter
 from mcmcfit.fitting.chain_pool import chain_pool
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.fitting.initialisation import (
@@ -51,14 +50,14 @@ from mcmcfit.sampling.param_vector import ParamLayout
 from mcmcfit.targets.landmarks import FaceBoxTarget, LandmarkGeometry, LandmarkTarget
 from mcmcfit.targets.noise_model import NoiseModel
 
-__all__ = ["Progress", "fit"]
+__all__ = ["Progress", "assemble_result", "drive_chains", "fit"]
 
 #: ``progress(stage, chain, done, total)``: stage is "landmarks" or "image", chain the
 #: 0-based chain index, done/total the steps of that stage of that chain.
 Progress = Callable[[str, int, int, int], None]
 
 #: Images whose brightest value is below half an 8-bit step are "all black".
-_BLACK = 0.5 / 255.0
+BLACK_LEVEL = 0.5 / 255.0
 
 
 def _best(samples: list[BestSample], key) -> BestSample:
@@ -122,7 +121,7 @@ def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConf
         raise InputError(f"image must have shape (H, W, 3), got {img.shape}")
     if not np.all(np.isfinite(img)):
         raise InputError("image contains NaN or infinite values")
-    if img.size == 0 or float(img.max()) < _BLACK:
+    if img.size == 0 or float(img.max()) < BLACK_LEVEL:
         raise InputError("image is entirely black: there is no face to fit")
     h, w = img.shape[:2]
     check_fit_inputs(w, h, landmarks=landmarks, face_box=face_box,
@@ -153,13 +152,13 @@ def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConf
     pool = chain_pool(problem, seeds, processes=cfg.parallel)
     setup_s = time.perf_counter() - t_start
     try:
-        results, noise, stopping = _drive(pool, cfg, layout, t_start, progress, regions)
+        results, noise, stopping = drive_chains(pool, cfg, layout, t_start, progress, regions)
     finally:
         pool.close()
     lm_init = [r.stage1.best_posterior.params if r.stage1 is not None else params0
                for r in results]
-    return _assemble(cfg, seed, layout, params0, results, lm_init, used, unknown,
-                     setup_s, time.perf_counter() - t_start, noise, stopping, regions)
+    return assemble_result(cfg, seed, layout, params0, results, lm_init, used, unknown,
+                           setup_s, time.perf_counter() - t_start, noise, stopping, regions)
 
 
 def _report(progress: Progress | None, stage: str, n_chains: int, done: int, total: int) -> None:
@@ -168,10 +167,14 @@ def _report(progress: Progress | None, stage: str, n_chains: int, done: int, tot
             progress(stage, ci, done, total)
 
 
-def _drive(pool, cfg: FitConfig, layout: ParamLayout, t_start: float,
-           progress: Progress | None,
-           regions: RegionAlbedo | None = None) -> tuple[list[ChainResult], NoiseModel, dict]:
-    """Run the phases of every chain in lockstep; return the chains, noise model and stop reason."""
+def drive_chains(pool, cfg: FitConfig, layout, t_start: float, progress: Progress | None,
+                 regions: RegionAlbedo | None = None) -> tuple[list[ChainResult], NoiseModel, dict]:
+    """Run the phases of every chain in lockstep; return the chains, noise model and stop reason.
+
+    ``pool`` runs the calls on every chain's session (a single fit's, or a joint
+    fit's: :class:`~mcmcfit.fitting.joint_session.JointChainSession`, whose noise
+    model is a :class:`~mcmcfit.fitting.joint_problem.JointNoise`).
+    """
     k = cfg.chains
     if cfg.landmark_steps > 0:
         pool.call("landmarks")
@@ -305,10 +308,11 @@ def _pooled(noises: list[NoiseModel]) -> NoiseModel:
     return NoiseModel(sigma, temperature, "estimated", n_face, n_face / temperature)
 
 
-def _assemble(cfg: FitConfig, seed: int, layout: ParamLayout, template: RenderParameter,
-              chains: list[ChainResult], lm_init: list[RenderParameter], used, unknown,
-              setup_s: float, total_s: float, noise: NoiseModel, stopping: dict,
-              regions: RegionAlbedo | None = None) -> FitResult:
+def assemble_result(cfg: FitConfig, seed: int, layout, template,
+                    chains: list[ChainResult], lm_init: list, used, unknown,
+                    setup_s: float, total_s: float, noise, stopping: dict,
+                    regions: RegionAlbedo | None = None) -> FitResult:
+    """Collect the chains' records into a :class:`FitResult` (a single or a joint fit's layout)."""
     rec1 = [c.stage1 for c in chains if c.stage1 is not None]
     rec2 = [c.stage2 for c in chains if c.stage2 is not None]
     last = rec2 or rec1

@@ -56,8 +56,8 @@ from proposals.laplace.schedule import GAUSSIAN_BLOCKS
 from proposals.laplace.image_scale import ImageScale, anchor_vertices
 from proposals.laplace.widening import widened_by_draws
 
-__all__ = ["ADOPT_GAP", "START_ERODE", "GaussianPhases", "appearance_coordinates", "recentred",
-           "region_and_noise", "sampling_coordinates"]
+__all__ = ["ADOPT_GAP", "START_ERODE", "DrawPhases", "GaussianPhases", "appearance_coordinates",
+           "recentred", "region_and_noise", "sampling_coordinates"]
 
 #: Log-density gap (nats) beyond which a chain climbs from the best chain's mode instead of
 #: its own: a local mode that much lower (at similar curvature) holds under e^-10 of the
@@ -125,7 +125,73 @@ def region_and_noise(renderer: Renderer, target_linear: np.ndarray, params: Rend
     return estimate_noise(np.asarray(target_linear), rendered.image, mask)
 
 
-class GaussianPhases:
+class DrawPhases:
+    """The kept and warm-up draws of a Gaussian-sampler chain, and widening from them (a mixin).
+
+    Reads the session's ``problem.layout``, ``coords``, ``mode``, ``approx``,
+    ``_warm``, ``_kept`` (recorders) and ``_t_warm``, ``_t_kept``, and calls its
+    ``_build_proposal``: shared by a single fit's
+    (:class:`~mcmcfit.fitting.chain_session.ChainSession`) and a joint fit's
+    (:class:`~mcmcfit.fitting.joint_session.JointChainSession`) sessions.
+    """
+
+    def warmup_draws(self, fraction: float = 0.5) -> np.ndarray:
+        """Return the last ``fraction`` of the warm-up's draws in sampling coordinates (n, d)."""
+        return self._draws_of(self._warm, fraction)
+
+    def kept_draws(self, fraction: float = 0.75) -> np.ndarray:
+        """Return the last ``fraction`` of the kept draws so far in sampling coordinates (n, d)."""
+        return self._draws_of(self._kept, fraction)
+
+    def _draws_of(self, recorder, fraction: float) -> np.ndarray:
+        if recorder is None or self.coords is None:
+            return np.zeros((0, 0 if self.coords is None else self.coords.size))
+        rec = recorder.record()
+        tail = rec.samples[int(rec.samples.shape[0] * (1.0 - fraction)):]
+        layout, base = self.problem.layout, self.mode.params
+        return np.array([self.coords.u_of(layout.from_vector(v, base)) for v in tail])
+
+    def restart_kept(self) -> int:
+        """Make the kept draws so far warm-up (the sampler is about to change); return their number.
+
+        The next :meth:`draw` starts a new kept chain from the current state.
+        """
+        if self._kept is None:
+            return 0
+        n = self._kept.steps_done
+        if self._warm is None:
+            self._warm, self._t_warm = self._kept, self._t_kept
+            self._warm.stage = "warmup"
+        else:
+            self._warm.absorb(self._kept)
+            self._t_warm += self._t_kept
+        self._kept, self._t_kept = None, 0.0
+        return n
+
+    def widen(self, draws: list[np.ndarray], effective_fraction: float = 0.25) -> dict:
+        """Widen the Gaussian approximation where warm-up ``draws`` (one array per chain) are wider.
+
+        See :func:`proposals.laplace.widening.widened_by_draws`; the moves are
+        rebuilt on the widened approximation (their step multipliers are
+        adapted again by the rest of the warm-up).
+
+        Returns
+        -------
+        dict
+            ``ratios`` (variance ratios of the widened directions), ``largest``
+            (largest whitened eigenvalue), ``edge`` (the noise edge), ``n_draws``.
+        """
+        if self.approx is None:
+            return {"ratios": [], "largest": None, "edge": None, "n_draws": 0}
+        found = widened_by_draws(self.approx, [np.asarray(d) for d in draws],
+                                 effective_fraction=effective_fraction)
+        self.approx = found.approx
+        self._build_proposal()
+        return {"ratios": [float(r) for r in found.ratios], "largest": found.largest,
+                "edge": found.edge, "n_draws": found.n_draws}
+
+
+class GaussianPhases(DrawPhases):
     """The Gaussian sampler's phases of a chain (a mixin of :class:`~mcmcfit.fitting.chain_session.ChainSession`).
 
     Reads the session's ``problem``, ``cfg``, ``rng``, ``posterior`` and
@@ -285,58 +351,3 @@ class GaussianPhases:
         if not np.isfinite(self.state.log_posterior):
             self.state = init(self.mode.params, self.posterior.face, image=True)
         return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size}
-
-    def warmup_draws(self, fraction: float = 0.5) -> np.ndarray:
-        """Return the last ``fraction`` of the warm-up's draws in sampling coordinates (n, d)."""
-        return self._draws_of(self._warm, fraction)
-
-    def kept_draws(self, fraction: float = 0.75) -> np.ndarray:
-        """Return the last ``fraction`` of the kept draws so far in sampling coordinates (n, d)."""
-        return self._draws_of(self._kept, fraction)
-
-    def _draws_of(self, recorder, fraction: float) -> np.ndarray:
-        if recorder is None or self.coords is None:
-            return np.zeros((0, 0 if self.coords is None else self.coords.size))
-        rec = recorder.record()
-        tail = rec.samples[int(rec.samples.shape[0] * (1.0 - fraction)):]
-        layout, base = self.problem.layout, self.mode.params
-        return np.array([self.coords.u_of(layout.from_vector(v, base)) for v in tail])
-
-    def restart_kept(self) -> int:
-        """Make the kept draws so far warm-up (the sampler is about to change); return their number.
-
-        The next :meth:`draw` starts a new kept chain from the current state.
-        """
-        if self._kept is None:
-            return 0
-        n = self._kept.steps_done
-        if self._warm is None:
-            self._warm, self._t_warm = self._kept, self._t_kept
-            self._warm.stage = "warmup"
-        else:
-            self._warm.absorb(self._kept)
-            self._t_warm += self._t_kept
-        self._kept, self._t_kept = None, 0.0
-        return n
-
-    def widen(self, draws: list[np.ndarray], effective_fraction: float = 0.25) -> dict:
-        """Widen the Gaussian approximation where warm-up ``draws`` (one array per chain) are wider.
-
-        See :func:`proposals.laplace.widening.widened_by_draws`; the moves are
-        rebuilt on the widened approximation (their step multipliers are
-        adapted again by the rest of the warm-up).
-
-        Returns
-        -------
-        dict
-            ``ratios`` (variance ratios of the widened directions), ``largest``
-            (largest whitened eigenvalue), ``edge`` (the noise edge), ``n_draws``.
-        """
-        if self.approx is None:
-            return {"ratios": [], "largest": None, "edge": None, "n_draws": 0}
-        found = widened_by_draws(self.approx, [np.asarray(d) for d in draws],
-                                 effective_fraction=effective_fraction)
-        self.approx = found.approx
-        self._build_proposal()
-        return {"ratios": [float(r) for r in found.ratios], "largest": found.largest,
-                "edge": found.edge, "n_draws": found.n_draws}

@@ -32,6 +32,7 @@ from albedo_model.model import MorphableModel
 from mcmcfit.fitting.config import FitConfig
 
 __all__ = ["FitWarning", "LoadedModel", "load_model_cached", "read_landmarks", "parse_face_box",
+           "warn_if_unconverged",
            "check_landmark_names",
            "run_fit_job", "fit_into_folder", "atomic_folder"]
 
@@ -235,15 +236,20 @@ def fit_into_folder(image: np.ndarray, landmarks, loaded: LoadedModel, out_dir: 
             before_write(tmp)
         summary = write_fit_outputs(tmp, result, loaded, image, landmarks=landmarks,
                                     face_box=face_box, inputs=inputs or {}, truth=truth)
-    conv = result.convergence
+    warn_if_unconverged(result.convergence, stacklevel=2)
+    return summary
+
+
+def warn_if_unconverged(conv: dict, *, stacklevel: int = 2) -> None:
+    """Warn (:class:`FitWarning`) when a fit's convergence verdict says it has not converged."""
     if conv and not conv.get("converged"):
         worst = conv.get("worst") or [{}]
         warnings.warn(
             f"the chains have NOT converged (max R-hat {conv.get('max_rhat', float('nan')):.3g}, "
             f"min bulk-ESS {conv.get('min_ess_bulk', float('nan')):.0f}, worst "
             f"{worst[0].get('name', '?')}): the intervals and uncertainty maps show an unconverged "
-            "walk, not the posterior (summary.json 'converged': false)", FitWarning, stacklevel=2)
-    return summary
+            "walk, not the posterior (summary.json 'converged': false)", FitWarning,
+            stacklevel=stacklevel + 1)
 
 
 def check_landmark_names(landmarks, model: MorphableModel, *, source="landmarks",

@@ -16,11 +16,13 @@ schedule) and :mod:`proposals.laplace` (coordinates, moves, random_walk).
 from __future__ import annotations
 
 import math
+import re
+from collections.abc import Sequence
 
 import numpy as np
 
 from proposals.albedo_solver import AlbedoConditional, AlbedoData
-from proposals.base import Mixture, mixture
+from proposals.base import Mixture, Proposal, mixture
 from proposals.laplace.coordinates import SamplingCoordinates
 from proposals.laplace.moves import (
     CoordinateGradient, CrankNicolson, GaussianApproximation, GaussianBlockConditional, GaussianHMC,
@@ -31,6 +33,9 @@ from proposals.schedule import Scales
 
 __all__ = ["BLOCK_SHARES", "GAUSSIAN_BLOCKS", "GAUSSIAN_FAMILIES", "GAUSSIAN_STEPS", "GAUSSIAN_TARGETS",
            "HMC_STEP", "WALK_SCALE", "WIDE_FACTOR", "gaussian_image_proposal", "rho_of", "walk_scale"]
+
+#: A joint fit's per-image coordinate-name prefix (:mod:`proposals.laplace.joint_coordinates`).
+_IMAGE_PREFIX = re.compile(r"^image\d+\.")
 
 #: The Gaussian moves' families (warm-up adapts one step multiplier each).
 GAUSSIAN_FAMILIES = ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
@@ -98,7 +103,8 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
                             albedo_weight: float = 0.2,
                             light_conditional_weight: float = 0.1,
                             gradient: CoordinateGradient | None = None, hmc_weight: float = 0.0,
-                            hmc_leapfrog: int = 4) -> Mixture:
+                            hmc_leapfrog: int = 4,
+                            extra_moves: Sequence[tuple[float, Proposal]] = ()) -> Mixture:
     """Build the image-stage proposal of the Gaussian sampler (the default).
 
     Parameters
@@ -129,13 +135,22 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
         Top-level weight of the HMC move.
     hmc_leapfrog : int
         Leapfrog steps per HMC move (each a ray cast and a gradient).
+    extra_moves : sequence of (weight, proposal)
+        Further top-level moves (a joint fit's conditionals over several images).
+
+    Notes
+    -----
+    The blocks are chosen by coordinate name with any ``image<i>.`` prefix
+    removed, so for a joint fit's coordinates
+    (:class:`~proposals.laplace.joint_coordinates.JointCoordinates`) a block is
+    the shared identity's part and every image's part of it together.
 
     Returns
     -------
     Mixture
     """
     k = dict(scales or {})
-    names = np.array(coords.names)
+    names = np.array([_IMAGE_PREFIX.sub("", n) for n in coords.names])
     parts = [(pcn_weight, mixture((1.0, CrankNicolson(coords, approx, rho_of("pcn", k),
                                                       name="pcn")), name="pcn"))]
     for family, share in BLOCK_SHARES.items():
@@ -153,6 +168,7 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
         parts.append((albedo_weight, AlbedoConditional(albedo_data, sigma=pixel_sigma)))
     if light_conditional is not None and light_conditional_weight > 0:
         parts.append((light_conditional_weight, light_conditional))
+    parts += [(w, move) for w, move in extra_moves if w > 0]
     if gradient is not None and hmc_weight > 0:
         step = HMC_STEP * float(k.get("hmc", 1.0))
         parts.append((hmc_weight, mixture((1.0, GaussianHMC(coords, approx, gradient, step,

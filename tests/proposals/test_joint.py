@@ -188,3 +188,20 @@ def test_bad_arguments_are_refused():
     jp = _joint()
     none = SharedAlbedoConditional([lambda s: None, lambda s: None], [SIGMA, SIGMA])
     assert none(np.random.default_rng(0), _state(jp)).touched == Block.NONE
+
+
+def test_lift_keeps_the_schedule_leaf_by_leaf():
+    from proposals.base import leaves
+    from proposals.joint import lift
+
+    walks = mixture((1.0, CoefficientWalk(Block.ALBEDO, 0.1)), (3.0, SHIntensity(0.1)),
+                    name="inner")
+    lifted = lift(1, mixture((1.0, walks), (1.0, SHIntensity(0.2)), name="outer"))
+    got = [(round(p, 6), leaf.name, leaf.touches) for p, leaf in leaves(lifted)]
+    want = [(round(p, 6), f"{leaf.name}@1", leaf.touches)
+            for p, leaf in leaves(mixture((1.0, walks), (1.0, SHIntensity(0.2))))]
+    assert got == want
+    jp = _joint()
+    move = lifted(np.random.default_rng(0), ProposalState(jp))
+    assert move.name.endswith("@1") and move.params.images[0] is jp.images[0] or (
+        move.touched & Block.ALBEDO)
