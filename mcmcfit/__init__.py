@@ -5,10 +5,15 @@ cheap and a batch worker can limit its threads before JAX starts):
 
 =====================  ===============================================================
 ``fit``                fit a model to an image array: :func:`mcmcfit.fitting.fit.fit`
+``fit_joint``          fit several photographs of one face: :func:`mcmcfit.fitting.joint_fit.fit_joint`
 ``FitConfig``          the settings of a fit: :class:`mcmcfit.fitting.config.FitConfig`
 ``FitResult``          what a fit returns: :class:`mcmcfit.fitting.result.FitResult`
 ``run_fit_job``        an image file in, a result folder out (what ``mcmcfit fit`` does):
                        :func:`mcmcfit.jobs.fit_job.run_fit_job`
+``run_joint_fit_job``  several image files in, one result folder out:
+                       :func:`mcmcfit.jobs.joint_job.run_joint_fit_job`
+``write_fit_textures`` a result folder's maps as textures (``mcmcfit texture``):
+                       :func:`mcmcfit.jobs.texture_job.write_fit_textures`
 ``write_fit_outputs``  write a result folder: :func:`mcmcfit.outputs.folder.write_fit_outputs`
 ``load_model``         a model file or ``"default"``: :func:`mcmcfit.jobs.model_spec.load_model_spec`
 ``read_image``         an image file as floats in [0, 1]: :func:`albedo_model.io.image_io.read_image`
@@ -42,9 +47,12 @@ except PackageNotFoundError:  # running from a source tree without install
 
 _API = {
     "fit": ("mcmcfit.fitting.fit", "fit"),
+    "fit_joint": ("mcmcfit.fitting.joint_fit", "fit_joint"),
     "FitConfig": ("mcmcfit.fitting.config", "FitConfig"),
     "FitResult": ("mcmcfit.fitting.result", "FitResult"),
     "run_fit_job": ("mcmcfit.jobs.fit_job", "run_fit_job"),
+    "run_joint_fit_job": ("mcmcfit.jobs.joint_job", "run_joint_fit_job"),
+    "write_fit_textures": ("mcmcfit.jobs.texture_job", "write_fit_textures"),
     "write_fit_outputs": ("mcmcfit.outputs.folder", "write_fit_outputs"),
     "load_model": ("mcmcfit.jobs.model_spec", "load_model_spec"),
     "read_image": ("albedo_model.io.image_io", "read_image"),

@@ -14,6 +14,7 @@ Files (the caller makes the folder atomic):
 ``uncertainty_<part>_frontal.png``  its posterior std
 ``seen_frontal.png``                the share of the photographs that saw each vertex
                                     (black: none did; their albedo is the prior's)
+``traces.png``                      log densities and a few parameters per step, per chain
 ``samples.npz``                     every chain's kept draws (``samples`` (chains, draws, d),
                                     ``names``) and per-step log densities
 ``config.json``, ``summary.json``   the settings; the summary (as a single fit's, with
@@ -45,7 +46,12 @@ from mcmcfit.outputs.albedo_summary import (
     posterior_albedo,
     write_posterior_npz,
 )
-from mcmcfit.outputs.figures import save_landmark_figure, save_uncertainty_map, uncertainty_scale
+from mcmcfit.outputs.figures import (
+    save_landmark_figure,
+    save_traces,
+    save_uncertainty_map,
+    uncertainty_scale,
+)
 from mcmcfit.outputs.posterior import visible_vertices
 from mcmcfit.outputs.summary import build_summary, json_safe, landmark_errors
 from mcmcfit.outputs.truth import Truth, albedo_error
@@ -138,6 +144,8 @@ def write_joint_outputs(folder: str | os.PathLike, result: FitResult, loaded,
     count, mask = vertex_image(front, seen.sum(axis=0).astype(np.float64))
     write_png(out / "seen_frontal.png", np.clip(count / max(len(images), 1), 0.0, 1.0),
               alpha=mask)
+    save_traces(out / "traces.png", result,
+                columns=("image0.pose.yaw", "image1.pose.yaw", "albedo.0", "shape.0"))
     recs = result.records(2)
     if recs:
         n = min(r.samples.shape[0] for r in recs)

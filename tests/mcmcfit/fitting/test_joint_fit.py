@@ -87,7 +87,7 @@ def test_the_result_folder_holds_both_photographs_and_one_albedo(files, fitted):
         assert "image1.pose.yaw" in names and "image0.pose.yaw" in names
         assert z["samples"].shape[0] == 2  # two chains
     for name in ("albedo_diffuse_frontal.png", "uncertainty_diffuse_frontal.png",
-                 "seen_frontal.png"):
+                 "seen_frontal.png", "traces.png", "config.json"):
         assert (out / name).is_file()
 
 
