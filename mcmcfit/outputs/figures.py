@@ -31,7 +31,8 @@ def _figure(width: float, height: float):
 
 
 def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray, np.ndarray]], *,
-                    vmax, label: str, cmap: str = "viridis") -> None:
+                    vmax, label: str, cmap: str = "viridis",
+                    outline: np.ndarray | None = None) -> None:
     """Scalar pictures side by side, on one colour scale or one each, with colour bars.
 
     Parameters
@@ -47,9 +48,11 @@ def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray,
         std of a sharp posterior).
     label : str
         Colour-bar label (quantity and unit).
+    outline : (H, W) bool, optional
+        A region drawn as a red outline on every panel.
     """
     if np.ndim(vmax):
-        _separate_scales(path, panels, [float(v) for v in vmax], label, cmap)
+        _separate_scales(path, panels, [float(v) for v in vmax], label, cmap, outline)
         return
     n = len(panels)
     fig = _figure(3.0 * n + 1.3, 3.4)
@@ -61,6 +64,7 @@ def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray,
         shown = np.ma.masked_array(np.asarray(img, np.float64), mask=~np.asarray(mask, bool))
         im = ax.imshow(shown, cmap=cmap, vmin=0.0, vmax=max(float(vmax), 1e-12),
                        interpolation="nearest")
+        _outline(ax, outline)
         ax.set_title(title, fontsize=9)
         ax.set_axis_off()
     cax = fig.add_axes((right + 0.02, 0.1, 0.035, 0.75))
@@ -70,7 +74,13 @@ def save_scalar_map(path: str | os.PathLike, panels: list[tuple[str, np.ndarray,
     fig.savefig(path)
 
 
-def _separate_scales(path, panels, vmax: list[float], label: str, cmap: str) -> None:
+def _outline(ax, region: np.ndarray | None) -> None:
+    if region is not None and np.any(region):
+        ax.contour(np.asarray(region, np.float64), levels=[0.5], colors="red", linewidths=0.8)
+
+
+def _separate_scales(path, panels, vmax: list[float], label: str, cmap: str,
+                     outline: np.ndarray | None = None) -> None:
     n = len(panels)
     fig = _figure(4.0 * n, 3.4)
     fig.subplots_adjust(left=0.02, right=0.9, top=0.88, bottom=0.03, wspace=0.35)
@@ -78,6 +88,7 @@ def _separate_scales(path, panels, vmax: list[float], label: str, cmap: str) -> 
     for ax, (title, img, mask), top in zip(axes, panels, vmax):
         shown = np.ma.masked_array(np.asarray(img, np.float64), mask=~np.asarray(mask, bool))
         im = ax.imshow(shown, cmap=cmap, vmin=0.0, vmax=max(top, 1e-12), interpolation="nearest")
+        _outline(ax, outline)
         ax.set_title(title, fontsize=9)
         ax.set_axis_off()
         cbar = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02)
@@ -92,7 +103,7 @@ def uncertainty_scale(part) -> list[float]:
 
 
 def save_uncertainty_map(path: str | os.PathLike, state, part, *, name: str, view: str,
-                         vmax: float | None = None) -> None:
+                         vmax: float | None = None, unseen: np.ndarray | None = None) -> None:
     """Std maps of one albedo part in one view: coefficient-only (and predictive) panels.
 
     Parameters
@@ -108,13 +119,21 @@ def save_uncertainty_map(path: str | os.PathLike, state, part, *, name: str, vie
         Colour-scale tops, one per panel, shared by the views (default
         :func:`uncertainty_scale`): the coefficient-only std of a sharp posterior
         is many times smaller than the predictive one, so each has its own scale.
+    unseen : (n,) bool, optional
+        Vertices no photograph saw, outlined in red (a joint fit's).
     """
     panels = []
     for label, std in std_maps(part):
         img, mask = vertex_image(state, std)
         panels.append((f"{name} std, {label}\n{view} view", img, mask))
+    outline = None
+    if unseen is not None:
+        img, mask = vertex_image(state, np.asarray(unseen, np.float64))
+        outline = mask & (img > 0.5)
     save_scalar_map(path, panels, vmax=uncertainty_scale(part) if vmax is None else vmax,
-                    label=STD_LABEL.format(part=name))
+                    label=STD_LABEL.format(part=name)
+                    + ("; red outline: seen by no photograph" if unseen is not None else ""),
+                    outline=outline)
 
 
 def save_traces(path: str | os.PathLike, result: FitResult,

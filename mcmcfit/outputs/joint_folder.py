@@ -11,7 +11,8 @@ Files (the caller makes the folder atomic):
 ``image<k>/fit_landmarks.png``      its target and fitted landmarks
 ``image<k>/best.rps``, ``mean.rps``   its scene at the best sample and the posterior mean
 ``albedo_<part>_frontal.png``       the posterior-mean albedo, frontal, display-encoded
-``uncertainty_<part>_frontal.png``  its posterior std
+``uncertainty_<part>_frontal.png``  its posterior std, the vertices no photograph saw
+                                    outlined in red
 ``seen_frontal.png``                the share of the photographs that saw each vertex
                                     (black: none did; their albedo is the prior's)
 ``traces.png``                      log densities and a few parameters per step, per chain
@@ -140,7 +141,7 @@ def write_joint_outputs(folder: str | os.PathLike, result: FitResult, loaded,
         rgb, mask = vertex_image(front, part.mean)
         write_png(out / f"albedo_{name}_frontal.png", encode_display(rgb), alpha=mask)
         save_uncertainty_map(out / f"uncertainty_{name}_frontal.png", front, part, name=name,
-                             view="frontal", vmax=uncertainty_scale(part))
+                             view="frontal", vmax=uncertainty_scale(part), unseen=~visible)
     count, mask = vertex_image(front, seen.sum(axis=0).astype(np.float64))
     write_png(out / "seen_frontal.png", np.clip(count / max(len(images), 1), 0.0, 1.0),
               alpha=mask)
