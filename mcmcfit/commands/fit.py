@@ -129,7 +129,10 @@ def register(subparsers) -> None:
         description="Fit the morphable albedo model to one photograph (landmark stage, then "
         "image stage, for several chains) and write a result folder: posterior.npz, best.rps, "
         "mean.rps, fit.png, albedo and uncertainty maps, mesh.ply, chain.h5, summary.json, "
-        "report.html. The folder appears complete or not at all.",
+        "report.html. The folder appears complete or not at all. Several photographs of one "
+        "person are fitted jointly into one folder (one shape and albedo; image<k>/ per "
+        "photograph); give them before the options: mcmcfit fit A.png B.png --landmarks "
+        "A.tlms B.tlms -o OUT.",
     )
     p.add_argument("image", nargs="+",
                    help="photograph (PNG or JPEG, sRGB); several photographs of one person are "

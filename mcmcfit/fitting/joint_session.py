@@ -100,6 +100,7 @@ class JointChainSession(DrawPhases):
         self.target = self._joint_target()
         self.scales: dict[str, float] = {f: 1.0 for f in FAMILIES}
         self.coords: JointCoordinates | None = None
+        self._hmc_gradient = None
         self.approx: GaussianApproximation | None = None
         self.mode: ModeResult | None = None
         self.proposal = None
@@ -142,7 +143,12 @@ class JointChainSession(DrawPhases):
         albedo = SharedAlbedoConditional(self.albedo_data, [p.pixel_sigma for p in self.posts])
         gradient = None
         if cfg.hmc_weight > 0:
-            gradient = joint_coordinate_gradient(self._curvature(), self.coords)
+            if self._hmc_gradient is None:  # one per posterior and coordinates (Jacobians are big)
+                curvature = self._curvature()
+                triangles = (curvature.region_triangles(self.mode.params)
+                             if cfg.hmc_triangles == "mode" else None)
+                self._hmc_gradient = joint_coordinate_gradient(curvature, self.coords, triangles)
+            gradient = self._hmc_gradient
         self.proposal = gaussian_image_proposal(
             self.coords, self.approx, scales=self.scales, pcn_weight=cfg.pcn_weight,
             block_weight=cfg.block_weight, gradient=gradient, hmc_weight=cfg.hmc_weight,
@@ -260,6 +266,7 @@ class JointChainSession(DrawPhases):
         self.noise = noise
         self.posts = self._region_posts(self.regions, noise)
         self.target = self._joint_target()
+        self._hmc_gradient = None  # a function of the posterior just replaced
         self._build_data()
         start = self.mode.params
         if best is not None:
@@ -282,6 +289,7 @@ class JointChainSession(DrawPhases):
                 images.append(sampling_coordinates(
                     p, scale=ImageScale.of_model(self.problem.model, p, anchors)))
             self.coords = JointCoordinates(images)
+        self._hmc_gradient = None
         self.approx = laplace(self._curvature(), self.coords, mode)
         self._build_proposal()
         start = self.coords.params_of(self.approx.draw(self.rng), mode)
