@@ -27,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from albedo_model.camera import pixel_scale
+from albedo_model.errors import InputError
 from albedo_model.model import MorphableModel
 from albedo_model.params import (
     SH_N0,
@@ -117,10 +118,12 @@ def _unit(v) -> np.ndarray:
 
 
 def _scene_params(model: MorphableModel, spec: SceneSpec, rng: np.random.Generator,
-                  size: int) -> RenderParameter:
+                  size: int, identity: np.ndarray | None = None) -> RenderParameter:
     ranks = model.ranks
     shape = np.zeros(ranks["shape"])
     shape[: min(10, ranks["shape"])] = rng.normal(0.0, 1.0, min(10, ranks["shape"]))
+    if identity is not None:  # drawn anyway: the rest of the scene is the seed's as before
+        shape = np.asarray(identity, np.float64).copy()
     expression = np.zeros(ranks.get("expression", 0))
     expression[: min(3, expression.size)] = rng.normal(0.0, 0.5, min(3, expression.size))
     lo, hi = spec.yaw_deg
@@ -198,7 +201,8 @@ def _encode(image: np.ndarray, quality: int | None) -> tuple[bytes, str, np.ndar
 
 
 def render_scene(model: MorphableModel, diffuse: np.ndarray, specular: np.ndarray,
-                 spec: SceneSpec, *, seed, size: int = 250) -> ScenePhoto:
+                 spec: SceneSpec, *, seed, size: int = 250,
+                 shape: np.ndarray | None = None) -> ScenePhoto:
     """Photograph a head with albedo maps ``diffuse``/``specular`` in scene ``spec``.
 
     Parameters
@@ -212,6 +216,9 @@ def render_scene(model: MorphableModel, diffuse: np.ndarray, specular: np.ndarra
         Every random choice (pose, light, camera, noise, landmarks) derives from it.
     size : int
         Image width and height.
+    shape : (k,) float array, optional
+        The head's shape coefficients (default: drawn from ``seed``, 10 leading
+        ones from N(0, 1)); give the same to photograph one person in several scenes.
 
     Returns
     -------
@@ -221,7 +228,10 @@ def render_scene(model: MorphableModel, diffuse: np.ndarray, specular: np.ndarra
 
     rng = np.random.default_rng(seed)
     size = int(size)
-    truth = _scene_params(model, spec, rng, size)
+    if shape is not None and np.shape(shape) != (model.ranks["shape"],):
+        raise InputError(f"shape must hold the model's {model.ranks['shape']} coefficients, "
+                         f"got shape {np.shape(shape)}")
+    truth = _scene_params(model, spec, rng, size, shape)
     tm = truth_model(model, diffuse, specular if spec.specular else None)
     shadows = bool(spec.shadows and spec.directional > 0)
     renderer = Renderer(tm, specular=spec.specular, shadows=shadows, threads=1,

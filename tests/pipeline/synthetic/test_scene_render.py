@@ -7,6 +7,7 @@ import time
 import numpy as np
 import pytest
 
+from albedo_model.errors import InputError
 from albedo_model.io.colour_space import model_colour_space
 from albedo_model.io.model_files import load_model
 from pipeline.synthetic.baked_model import bake_textures, build_baked_model
@@ -84,3 +85,20 @@ def test_baked_model_is_marked_srgb_and_bakes_shading(model):
     flat = bake_textures(d, 0 * s, normals)
     side = bake_textures(d, 0 * s, np.tile([1.0, 0.0, 0.0], (len(d), 1)))
     assert np.all(flat >= side)  # the key light comes from the front-left: shading baked in
+
+
+def test_one_person_in_several_scenes(model):
+    """A given shape replaces the seed's draw and nothing else: the scene is the seed's."""
+    d, s = _maps(model)
+    spec = scene_spec("sh", **CLEAN)
+    drawn = render_scene(model, d, s, spec, seed=5, size=64)
+    identity = np.zeros(model.ranks["shape"])
+    identity[:3] = (1.0, -0.5, 0.25)
+    a = render_scene(model, d, s, spec, seed=5, size=64, shape=identity)
+    b = render_scene(model, d, s, spec, seed=6, size=64, shape=identity)
+    np.testing.assert_array_equal(a.truth.momo.shape, identity)
+    np.testing.assert_array_equal(b.truth.momo.shape, identity)
+    assert a.truth.pose == drawn.truth.pose  # the rest of seed 5's scene
+    assert a.truth.pose != b.truth.pose
+    with pytest.raises(InputError, match="model's 40 coefficients"):
+        render_scene(model, d, s, spec, seed=5, size=64, shape=np.zeros(3))
