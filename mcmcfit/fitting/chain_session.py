@@ -29,7 +29,6 @@ noise_model) and
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 
@@ -51,7 +50,7 @@ from mcmcfit.proposal_data.face_pixels import unsaturated
 from mcmcfit.proposal_data.light import RenderLightData
 from mcmcfit.proposal_data.light_system import RenderLightSystem
 from mcmcfit.sampling.chain import ChainRecord, ChainRecorder, ChainResult
-from mcmcfit.sampling.kernel import ChainState, init, run
+from mcmcfit.sampling.kernel import ChainState, init
 from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster, coordinate_gradient
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.base import ProposalState
@@ -333,14 +332,6 @@ class ChainSession(GaussianPhases):
         self._phase_start = self._warm.steps_done if self._warm is not None else 0
         return self.state.log_lik_img
 
-    def draw(self, n_steps: int) -> ChainRecord:
-        """Run ``n_steps`` kept steps (continuing the chain) and return the kept record so far."""
-        if self._kept is None:
-            self._kept = ChainRecorder(self.problem.layout, 0, self.cfg.thin, self.state,
-                                       stage="image")
-        self._advance(self._kept, n_steps)
-        return self._kept.record(self._t_kept)
-
     def finish(self) -> ChainResult:
         """Return the chain's records (landmark stage, warm-up, kept draws) with its seed."""
         warm = self._warm.record(self._t_warm) if self._warm is not None else None
@@ -353,25 +344,10 @@ class ChainSession(GaussianPhases):
         return ChainResult(self.index, int(self.seed.entropy),
                            tuple(int(k) for k in self.seed.spawn_key), self.stage1, kept, warm)
 
-    # -- helpers ---------------------------------------------------------------------
-    def _advance(self, recorder: ChainRecorder, n: int) -> None:
-        offset = recorder.steps_done
-        recorder.extend(n)
-        check = self._check()
-        t0 = time.perf_counter()
-
-        def callback(i, s, info):
-            recorder(offset + i, s, info)
-            if check is not None:
-                check(offset + i, s, info)
-
-        self.state = run(self.rng, self.state, self.posterior.face, self.proposal, n, image=True,
-                         callback=callback)
-        dt = time.perf_counter() - t0
-        if recorder is self._warm:
-            self._t_warm += dt
-        else:
-            self._t_kept += dt
+    @property
+    def chain_target(self):
+        """The target the chain runs on (the image stage's full posterior)."""
+        return self.posterior.face
 
 
 def _with_solved_light(target, params: RenderParameter, data: RenderLightData) -> RenderParameter:

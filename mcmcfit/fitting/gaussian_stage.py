@@ -33,11 +33,13 @@ Helpers:
 
 This module imports :mod:`albedo_model` (camera, params, scene_vector, render),
 :mod:`mcmcfit.fitting` (mode, problem), :mod:`mcmcfit.proposal_data.face_pixels`,
-:mod:`mcmcfit.sampling.kernel`, :mod:`mcmcfit.targets` (curvature, noise_model) and
+:mod:`mcmcfit.sampling` (chain, kernel), :mod:`mcmcfit.targets` (curvature, noise_model) and
 :mod:`proposals.laplace` (coordinates, image_scale, schedule, widening).
 """
 
 from __future__ import annotations
+
+import time
 
 import numpy as np
 
@@ -48,7 +50,8 @@ from albedo_model.scene_vector import SceneLayout
 from mcmcfit.fitting.mode import ModeResult, find_mode, laplace, region_of
 from mcmcfit.fitting.problem import build_posterior, provisional_noise
 from mcmcfit.proposal_data.face_pixels import unsaturated
-from mcmcfit.sampling.kernel import init
+from mcmcfit.sampling.chain import ChainRecord, ChainRecorder
+from mcmcfit.sampling.kernel import init, run
 from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.laplace.coordinates import SamplingCoordinates
@@ -126,14 +129,43 @@ def region_and_noise(renderer: Renderer, target_linear: np.ndarray, params: Rend
 
 
 class DrawPhases:
-    """The kept and warm-up draws of a Gaussian-sampler chain, and widening from them (a mixin).
+    """A chain's kept draws, its draws in sampling coordinates, and widening from them (a mixin).
 
-    Reads the session's ``problem.layout``, ``coords``, ``mode``, ``approx``,
+    Reads the session's ``problem``, ``cfg``, ``rng``, ``state``, ``proposal``,
+    ``chain_target`` (the target its chain runs on), ``coords``, ``mode``, ``approx``,
     ``_warm``, ``_kept`` (recorders) and ``_t_warm``, ``_t_kept``, and calls its
-    ``_build_proposal``: shared by a single fit's
+    ``_check`` and ``_build_proposal``: shared by a single fit's
     (:class:`~mcmcfit.fitting.chain_session.ChainSession`) and a joint fit's
     (:class:`~mcmcfit.fitting.joint_session.JointChainSession`) sessions.
     """
+
+    def draw(self, n_steps: int) -> ChainRecord:
+        """Run ``n_steps`` kept steps (continuing the chain) and return the kept record so far."""
+        if self._kept is None:
+            self._kept = ChainRecorder(self.problem.layout, 0, self.cfg.thin, self.state,
+                                       stage="image")
+        self._advance(self._kept, n_steps)
+        return self._kept.record(self._t_kept)
+
+    def _advance(self, recorder: ChainRecorder, n: int) -> None:
+        """Run ``n`` steps of the chain on ``self.chain_target``, recorded (and checked)."""
+        offset = recorder.steps_done
+        recorder.extend(n)
+        check = self._check()
+        t0 = time.perf_counter()
+
+        def callback(i, s, info):
+            recorder(offset + i, s, info)
+            if check is not None:
+                check(offset + i, s, info)
+
+        self.state = run(self.rng, self.state, self.chain_target, self.proposal, n, image=True,
+                         callback=callback)
+        dt = time.perf_counter() - t0
+        if recorder is self._warm:
+            self._t_warm += dt
+        else:
+            self._t_kept += dt
 
     def warmup_draws(self, fraction: float = 0.5) -> np.ndarray:
         """Return the last ``fraction`` of the warm-up's draws in sampling coordinates (n, d)."""

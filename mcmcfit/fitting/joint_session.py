@@ -32,7 +32,6 @@ chain_session, gaussian_stage, joint_problem, landmark_starts, mode, problem),
 from __future__ import annotations
 
 import re
-import time
 
 import numpy as np
 
@@ -51,8 +50,8 @@ from mcmcfit.proposal_data.albedo import RenderAlbedoData
 from mcmcfit.proposal_data.face_pixels import unsaturated
 from mcmcfit.proposal_data.light import RenderLightData
 from mcmcfit.proposal_data.light_system import RenderLightSystem
-from mcmcfit.sampling.chain import ChainRecord, ChainRecorder, ChainResult
-from mcmcfit.sampling.kernel import init, run
+from mcmcfit.sampling.chain import ChainRecorder, ChainResult
+from mcmcfit.sampling.kernel import init
 from mcmcfit.targets.curvature import PosteriorCurvature
 from mcmcfit.targets.joint import JointTarget
 from mcmcfit.targets.joint_curvature import JointCurvature, joint_coordinate_gradient
@@ -325,14 +324,6 @@ class JointChainSession(DrawPhases):
             done += n
         return dict(self.scales)
 
-    def draw(self, n_steps: int) -> ChainRecord:
-        """Run ``n_steps`` kept steps and return the kept record so far."""
-        if self._kept is None:
-            self._kept = ChainRecorder(self.problem.layout, 0, self.cfg.thin, self.state,
-                                       stage="image")
-        self._advance(self._kept, n_steps)
-        return self._kept.record(self._t_kept)
-
     def finish(self) -> ChainResult:
         """Return the chain's records (warm-up, kept draws; the landmark stages in ``extra``)."""
         warm = self._warm.record(self._t_warm) if self._warm is not None else None
@@ -345,14 +336,11 @@ class JointChainSession(DrawPhases):
         return ChainResult(self.index, int(self.seed.entropy),
                            tuple(int(k) for k in self.seed.spawn_key), None, kept, warm)
 
-    def _advance(self, recorder: ChainRecorder, n: int) -> None:
-        offset = recorder.steps_done
-        recorder.extend(n)
-        t0 = time.perf_counter()
-        self.state = run(self.rng, self.state, self.target, self.proposal, n, image=True,
-                         callback=lambda i, s, info: recorder(offset + i, s, info))
-        dt = time.perf_counter() - t0
-        if recorder is self._warm:
-            self._t_warm += dt
-        else:
-            self._t_kept += dt
+    @property
+    def chain_target(self) -> JointTarget:
+        """The target the chain runs on (the joint posterior)."""
+        return self.target
+
+    def _check(self) -> None:
+        """No cache check for joint fits (``--check-cache`` checks single fits)."""
+        return None
