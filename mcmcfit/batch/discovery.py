@@ -17,6 +17,11 @@ Landmarks, first match wins:
   file (``--landmarks-glob '../lm/{stem}*.pts'``);
 * otherwise beside the image: ``<stem>.tlms``, then ``<stem>.pts``.
 
+With ``--group-by person`` (:func:`group_by_person`) the images of one person
+are fitted jointly: a person is the image's folder relative to INPUT (LFW:
+``Name/Name_0001.jpg``), or for an image at the top of INPUT its stem without
+a trailing ``_<number>`` (``Name_0001.jpg``).
+
 This module imports only :mod:`mcmcfit.batch` modules and the standard library.
 """
 
@@ -24,13 +29,14 @@ from __future__ import annotations
 
 import glob
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
 from mcmcfit.batch.out_paths import safe_relative
 
-__all__ = ["IMAGE_SUFFIXES", "LANDMARK_SUFFIXES", "BatchItem", "Skipped", "list_images",
-           "find_landmarks", "discover"]
+__all__ = ["IMAGE_SUFFIXES", "LANDMARK_SUFFIXES", "BatchItem", "PersonGroup", "Skipped",
+           "discover", "find_landmarks", "group_by_person", "list_images", "person_of"]
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")
 LANDMARK_SUFFIXES = (".tlms", ".pts")
@@ -231,3 +237,68 @@ def discover(input_path: str | os.PathLike, *, exclude: list[Path] | None = None
             continue
         items.append(BatchItem(image, source, rel, landmarks))
     return items, skipped
+
+
+@dataclass(frozen=True)
+class PersonGroup:
+    """The photographs of one person, fitted together into one result folder.
+
+    Attributes
+    ----------
+    relative : PurePosixPath
+        The person's output path (``Name``).
+    items : tuple of BatchItem
+        The photographs fitted, in input order (one: a single fit).
+    """
+
+    relative: PurePosixPath
+    items: tuple[BatchItem, ...]
+
+
+_NUMBERED = re.compile(r"^(.+?)_\d+$")
+
+
+def person_of(relative: PurePosixPath) -> PurePosixPath:
+    """Return the person an image shows: its folder, or its stem without ``_<number>`` at the top.
+
+    >>> person_of(PurePosixPath("Aaron_Peirsol/Aaron_Peirsol_0002"))
+    PurePosixPath('Aaron_Peirsol')
+    >>> person_of(PurePosixPath("Aaron_Peirsol_0002"))
+    PurePosixPath('Aaron_Peirsol')
+    """
+    rel = PurePosixPath(relative)
+    if len(rel.parts) > 1:
+        return rel.parent
+    m = _NUMBERED.match(rel.name)
+    return PurePosixPath(m.group(1) if m else rel.name)
+
+
+def group_by_person(items: list[BatchItem], *, max_per_person: int
+                    ) -> tuple[list[PersonGroup], list[Skipped]]:
+    """Group images by :func:`person_of`; a person's photographs past ``max_per_person`` are skipped.
+
+    Parameters
+    ----------
+    items : list of BatchItem
+        In input order (the first ``max_per_person`` of each person are fitted).
+    max_per_person : int
+        At least 1.
+
+    Returns
+    -------
+    (list of PersonGroup, list of Skipped)
+        Groups in order of their first image; the photographs left out, with the reason.
+    """
+    if max_per_person < 1:
+        raise ValueError(f"max_per_person must be >= 1, got {max_per_person}")
+    groups: dict[PurePosixPath, list[BatchItem]] = {}
+    for item in items:
+        groups.setdefault(person_of(item.relative), []).append(item)
+    out, skipped = [], []
+    for person, members in groups.items():
+        out.append(PersonGroup(person, tuple(members[:max_per_person])))
+        for item in members[max_per_person:]:
+            skipped.append(Skipped(item.source, str(item.relative),
+                                   f"{person} has {len(members)} photographs; the first "
+                                   f"{max_per_person} are fitted jointly (--max-per-person)"))
+    return out, skipped

@@ -80,19 +80,28 @@ def finished_record(summary: dict, folder: str | os.PathLike | None = None) -> d
     Returns
     -------
     dict
-        ``acceptance``, ``acceptance_stage1``, ``landmark_rms_px``, ``fit_seconds``,
-        ``albedo`` (see :func:`albedo_digest`), ``log_lik_img`` (best), ``model_sha256``.
+        ``acceptance``, ``acceptance_stage1``, ``landmark_rms_px`` (a joint fit:
+        the mean over its photographs), ``fit_seconds``, ``albedo`` (see
+        :func:`albedo_digest`), ``log_lik_img`` (best), ``model_sha256``,
+        ``converged``, ``n_images`` (photographs fitted together).
     """
     timings = summary.get("timings") or {}
     best = summary.get("best") or {}
+    images = summary.get("images") or []
+    landmark = _finite(summary.get("landmark_rmse_px"))
+    per_image = [v for v in (_finite(im.get("landmark_rmse_px")) for im in images)
+                 if v is not None]
+    if images and per_image:
+        landmark = sum(per_image) / len(per_image)
     return {
         "acceptance": overall_acceptance(summary.get("acceptance")),
         "acceptance_stage1": overall_acceptance(summary.get("acceptance_stage1")),
-        "landmark_rms_px": _finite(summary.get("landmark_rmse_px")),
+        "landmark_rms_px": landmark,
         "fit_seconds": _finite(timings.get("total_s")),
         "log_lik_img": _finite(best.get("log_lik_img")),
         "model_sha256": summary.get("model_sha256"),
         "converged": summary.get("converged"),
+        "n_images": len(images) or 1,
         "albedo": albedo_digest(Path(folder) / "posterior.npz") if folder is not None else {},
     }
 

@@ -6,7 +6,8 @@ otherwise its last ``failures.jsonl`` line (failed or skipped). Images fitted
 in an earlier run and failing in a later ``--force`` run keep their result
 (the failed fit never replaced the folder). The subject of an image is the
 first component of its relative path (LFW: ``Name/Name_0001``), or ``"."`` for
-an image at the top of INPUT.
+an image at the top of INPUT; under ``batch --group-by person`` a row is a
+person (its relative path, ``n_images`` photographs fitted together).
 
 This module imports :mod:`mcmcfit.batch` modules, the standard library and, when
 it writes the CSV, :mod:`albedo_model.io.atomic`.
@@ -28,7 +29,7 @@ __all__ = ["CSV_COLUMNS", "batch_rows", "subject_of", "write_csv"]
 CSV_COLUMNS = ("subject", "path", "relative", "status", "seconds", "fit_seconds", "acceptance",
                "acceptance_stage1", "landmark_rms_px", "diffuse_r", "diffuse_g", "diffuse_b",
                "diffuse_mean", "diffuse_std_mean", "specular_mean", "seed", "error_type",
-               "reason", "finished_at")
+               "reason", "finished_at", "n_images")
 
 
 def subject_of(relative: str) -> str:
@@ -52,7 +53,8 @@ def _ok_row(r: dict) -> dict:
             "diffuse_r": _num(rgb[0]), "diffuse_g": _num(rgb[1]), "diffuse_b": _num(rgb[2]),
             "diffuse_mean": _num(alb.get("diffuse_mean")),
             "diffuse_std_mean": _num(alb.get("diffuse_std_mean")),
-            "specular_mean": _num(alb.get("specular_mean")), "error_type": "", "reason": ""}
+            "specular_mean": _num(alb.get("specular_mean")), "error_type": "", "reason": "",
+            "n_images": r.get("n_images") or len(r.get("images") or []) or 1}
 
 
 def batch_rows(out: str | os.PathLike) -> list[dict]:
@@ -73,7 +75,9 @@ def batch_rows(out: str | os.PathLike) -> list[dict]:
             continue
         if complete:
             rows[rel] = {"path": r.get("path", rel), "relative": rel, "seed": r.get("seed"),
-                         "finished_at": r.get("finished_at", ""), **_ok_row(r)}
+                         "finished_at": r.get("finished_at", ""),
+                         "person": "images" in r or (r.get("n_images") or 1) > 1,
+                         **_ok_row(r)}
     for r in read_journal(out / FAILURES_JOURNAL):
         key = r.get("relative") or r.get("path") or ""
         if not key or key in rows and rows[key]["status"] == "ok":
@@ -81,12 +85,14 @@ def batch_rows(out: str | os.PathLike) -> list[dict]:
         rows[key] = {"path": r.get("path", key), "relative": r.get("relative") or "",
                      "status": r.get("status", "failed"), "seconds": _num(r.get("seconds")),
                      "seed": r.get("seed"), "error_type": r.get("error_type", ""),
-                     "reason": r.get("reason", ""), "finished_at": r.get("finished_at", "")}
+                     "reason": r.get("reason", ""), "finished_at": r.get("finished_at", ""),
+                     "person": "images" in r}
     table = []
     for key in sorted(rows):
         row = {c: None for c in CSV_COLUMNS}
         row.update(rows[key])
-        row["subject"] = subject_of(row["relative"] or row["path"])
+        where = row["relative"] or row["path"]
+        row["subject"] = where if row.pop("person", False) else subject_of(where)
         table.append(row)
     return table
 

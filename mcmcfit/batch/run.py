@@ -3,7 +3,10 @@
 :func:`plan_batch` finds the images (:mod:`mcmcfit.batch.discovery`), keeps
 those whose result folder is not complete (or all of them with ``force``),
 removes temporary folders left by a killed run, and builds one
-:class:`~mcmcfit.batch.task.FitTask` per image. :func:`run_batch` runs them on
+:class:`~mcmcfit.batch.task.FitTask` per image; with ``group_by="person"``
+one per person (:func:`mcmcfit.batch.discovery.group_by_person`), its
+photographs fitted jointly into ``OUT/<person>/`` (a person with one usable
+photograph gets a single fit there). :func:`run_batch` runs them on
 the process pool or on Dask and, in this process only, appends one line per
 finished image to ``OUT/batch.jsonl`` and one per failed or skipped image to
 ``OUT/failures.jsonl`` (:mod:`mcmcfit.batch.journal`).
@@ -24,13 +27,14 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from albedo_model.errors import InputError
 from albedo_model.io.model_files import BUILTIN_MODELS
-from mcmcfit.batch.discovery import BatchItem, Skipped, discover
+from mcmcfit.batch.discovery import BatchItem, Skipped, discover, group_by_person
 from mcmcfit.batch.journal import BATCH_JOURNAL, FAILURES_JOURNAL, append_line, read_journal
 from mcmcfit.batch.out_paths import is_complete, remove_stale_temp_dirs, result_dir
 from mcmcfit.batch.records import record_from_folder
 from mcmcfit.batch.seeds import image_seed
-from mcmcfit.batch.task import FitTask, run_task
+from mcmcfit.batch.task import DETECT, FitTask, Photograph, run_task
 from mcmcfit.fitting.config import FitConfig
 
 __all__ = ["BatchOptions", "BatchPlan", "BatchResult", "plan_batch", "run_batch"]
@@ -75,6 +79,12 @@ class BatchOptions:
         The model's colour space (``--model-colour``): set in every fit's config
         (``FitConfig.model_colour``); None keeps the config's (by default read
         from the model).
+    group_by : {None, "person"}
+        ``"person"``: fit each person's photographs jointly (one result folder
+        per person; needs landmarks, files or detected, not a face box).
+    max_per_person : int
+        With ``group_by``: the photographs of a person fitted together (2-8;
+        the rest are skipped with the reason).
     """
 
     input: Path
@@ -93,6 +103,19 @@ class BatchOptions:
     pin: bool = False
     progress: bool = True
     model_colour: str | None = None
+    group_by: str | None = None
+    max_per_person: int = 4
+
+    def __post_init__(self) -> None:
+        """Refuse options a joint fit cannot take (:class:`~albedo_model.errors.InputError`)."""
+        if self.group_by not in (None, "person"):
+            raise InputError(f"group_by must be None or 'person', got {self.group_by!r}")
+        if self.group_by and not 2 <= self.max_per_person <= 8:
+            raise InputError(f"--max-per-person must be 2 to 8 (a joint fit's photographs), "
+                             f"got {self.max_per_person}")
+        if self.group_by and self.face_box not in (None, DETECT):
+            raise InputError("--group-by person fits photographs jointly, which needs "
+                             "landmarks (files or --detect-landmarks), not a face box")
 
 
 @dataclass
@@ -145,18 +168,28 @@ def plan_batch(opts: BatchOptions) -> BatchPlan:
                                  model_colour=colour)
     tasks, complete = [], []
     model = _model_spec(opts.model)
-    for item in items:
-        folder = result_dir(out, item.relative)
+    common = {"model": model, "config": config.to_dict(), "threads": max(1, opts.threads)}
+    if opts.group_by:
+        groups, extra = group_by_person(items, max_per_person=opts.max_per_person)
+        skipped = skipped + extra
+        units = [(g.relative, g.items) for g in groups]
+    else:
+        units = [(item.relative, (item,)) for item in items]
+    for relative, members in units:
+        folder = result_dir(out, relative)
+        first = members[0]
+        source = str(relative) if opts.group_by else first.source
         if is_complete(folder) and not opts.force:
-            complete.append(item)
+            complete.append(BatchItem(first.image, source, relative, first.landmarks))
             continue
+        joint = tuple(Photograph(str(m.image), m.source, None if m.landmarks is None
+                                 else str(m.landmarks.absolute())) for m in members)
         tasks.append(FitTask(
-            image=str(item.image), source=item.source, relative=str(item.relative),
-            out_dir=str(folder.absolute()),
-            landmarks=None if item.landmarks is None else str(item.landmarks.absolute()),
-            face_box=None if item.landmarks is not None else opts.face_box,
-            model=model, config=config.to_dict(), seed=image_seed(opts.seed, item.relative),
-            force=opts.force or folder.exists(), threads=max(1, opts.threads)))
+            image=str(first.image), source=source, relative=str(relative),
+            out_dir=str(folder.absolute()), landmarks=joint[0].landmarks,
+            face_box=None if first.landmarks is not None else opts.face_box,
+            seed=image_seed(opts.seed, relative), force=opts.force or folder.exists(),
+            members=joint if opts.group_by else (), **common))
     return BatchPlan(tasks, complete, skipped)
 
 
@@ -225,12 +258,14 @@ def run_batch(opts: BatchOptions, *, log=None, task_fn=run_task) -> BatchResult:
     for task in plan.tasks:
         remove_stale_temp_dirs(task.out_dir)
     total = len(plan.tasks) + len(plan.complete)
-    log(f"mcmcfit batch: {total} images, {len(plan.complete)} already complete, "
-        f"{len(plan.tasks)} to fit, {len(plan.skipped)} skipped"
-        + (" (see failures.jsonl)" if plan.skipped else ""))
+    joint = sum(len(t.members) > 1 for t in plan.tasks)
+    log(f"mcmcfit batch: {total} {'people' if opts.group_by else 'images'}, "
+        f"{len(plan.complete)} already complete, {len(plan.tasks)} to fit"
+        + (f" ({joint} jointly)" if opts.group_by else "")
+        + f", {len(plan.skipped)} skipped" + (" (see failures.jsonl)" if plan.skipped else ""))
     failed: list[dict] = []
     fitted = unconverged = 0
-    bar = tqdm(total=len(plan.tasks), unit="img", desc="fitting", file=sys.stderr,
+    bar = tqdm(total=len(plan.tasks), unit="person" if opts.group_by else "img", desc="fitting", file=sys.stderr,
                disable=not opts.progress or not plan.tasks, dynamic_ncols=True)
     try:
         bar.set_postfix_str(f"done=0 failed=0 remaining={len(plan.tasks)}")

@@ -36,6 +36,15 @@ complete images (a folder with summary.json) and redoes the others; --force
 refits everything. Failures go to OUT/failures.jsonl and the batch continues;
 finished images to OUT/batch.jsonl. Exit code 1 when an image failed.
 
+--group-by person fits the photographs of each person jointly (one identity,
+each photograph its own pose, camera, expression and light; as `mcmcfit fit
+IMG1 IMG2 ...`) into OUT/<person>/: a person is the image's folder relative to
+INPUT (LFW: Name/Name_0001.jpg), or for an image at the top of INPUT its stem
+without a trailing _<number>. At most --max-per-person photographs per person
+(default 4, the first in sorted order; the rest are recorded as skipped); a
+person with one usable photograph gets a single fit. It needs landmarks (files
+or --detect-landmarks), not a face box.
+
 Parallelism: a local process pool (--workers, default: the cores), or Dask:
 --scheduler tcp://host:8786 sends one task per image to a running cluster
 (INPUT, landmarks, model and OUT must be on storage the workers share under the
@@ -75,6 +84,10 @@ def register(subparsers) -> None:
                      help="fit images without landmarks with the LFW face box (see above)")
     box.add_argument("--face-box", metavar="X,Y,W,H",
                      help="fit images without landmarks with this face box (pixels)")
+    p.add_argument("--group-by", choices=["person"], dest="group_by",
+                   help="fit each person's photographs jointly (see above)")
+    p.add_argument("--max-per-person", type=positive_int, default=4, metavar="N",
+                   help="with --group-by person: photographs fitted together, 2-8 (default 4)")
     p.add_argument("--model", default="default-face",
                    help="model file (.h5), 'default-face' (default: the face-only crop of the "
                    "built-in model) or 'default' (the whole head)")
@@ -160,13 +173,16 @@ def run_batch_command(args: argparse.Namespace) -> int:
                         landmarks_glob=args.landmarks_glob, face_box=face_box, force=args.force,
                         workers=workers, threads=threads, scheduler=args.scheduler,
                         dask=args.dask, pin=args.pin and not (args.scheduler or args.dask),
-                        progress=not args.quiet, model_colour=args.model_colour)
+                        progress=not args.quiet, model_colour=args.model_colour,
+                        group_by=args.group_by, max_per_person=args.max_per_person)
     result = run_batch(opts)
-    print(f"mcmcfit batch: {result.fitted} fitted, {len(result.failed)} failed, "
+    unit = "people" if args.group_by else "images"
+    print(f"mcmcfit batch: {result.fitted}{' people' if args.group_by else ''} fitted, "
+          f"{len(result.failed)} failed, "
           f"{result.already_complete} already complete, {result.skipped} skipped "
           f"-> {opts.out}", file=sys.stderr)
     if result.unconverged:
-        print(f"mcmcfit batch: warning: {result.unconverged} of the {result.fitted} fitted images "
+        print(f"mcmcfit batch: warning: {result.unconverged} of the {result.fitted} fitted {unit} "
               "have NOT converged ('converged': false in their summary.json and in batch.jsonl; "
               "see the banner of their report.html)", file=sys.stderr)
     for f in result.failed[:10]:

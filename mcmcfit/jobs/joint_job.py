@@ -62,9 +62,10 @@ def run_joint_fit_job(image_paths: Sequence[str | os.PathLike], out_dir: str | o
     image_paths : sequence of path-like
         PNG or JPEG photographs (gamma-encoded sRGB), at least two.
     out_dir : path-like
-    landmarks_paths : sequence of path-like, optional
+    landmarks_paths : sequence of path-like or None, optional
         One ``.tlms`` / ``.pts`` file per photograph, in the same order; without
-        them every photograph's landmarks are detected (the ``landmarks`` extra).
+        them every photograph's landmarks are detected (the ``landmarks`` extra),
+        and so are those of a photograph whose entry is None.
     model, config, seed, progress, force, model_progress, face
         As :func:`mcmcfit.jobs.fit_job.run_fit_job`.
 
@@ -88,7 +89,7 @@ def run_joint_fit_job(image_paths: Sequence[str | os.PathLike], out_dir: str | o
     loaded = _as_loaded(model, progress=model_progress)
     landmarks, inputs = [], []
     for i, (p, im) in enumerate(zip(paths, images)):
-        if landmarks_paths is not None:
+        if landmarks_paths is not None and landmarks_paths[i] is not None:
             lm = read_landmarks(landmarks_paths[i])
             source = str(landmarks_paths[i])
         else:

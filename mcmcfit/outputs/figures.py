@@ -125,15 +125,14 @@ def save_uncertainty_map(path: str | os.PathLike, state, part, *, name: str, vie
     panels = []
     for label, std in std_maps(part):
         img, mask = vertex_image(state, std)
-        panels.append((f"{name} std, {label}\n{view} view", img, mask))
+        seen = "; red: seen by no photograph" if unseen is not None else ""
+        panels.append((f"{name} std, {label}\n{view} view{seen}", img, mask))
     outline = None
     if unseen is not None:
         img, mask = vertex_image(state, np.asarray(unseen, np.float64))
         outline = mask & (img > 0.5)
     save_scalar_map(path, panels, vmax=uncertainty_scale(part) if vmax is None else vmax,
-                    label=STD_LABEL.format(part=name)
-                    + ("; red outline: seen by no photograph" if unseen is not None else ""),
-                    outline=outline)
+                    label=STD_LABEL.format(part=name), outline=outline)
 
 
 def save_traces(path: str | os.PathLike, result: FitResult,

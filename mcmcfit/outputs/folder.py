@@ -66,7 +66,7 @@ from mcmcfit.outputs.truth import Truth, albedo_error
 from mcmcfit.outputs.vertex_maps import encode_display, frontal_params, vertex_image
 from mcmcfit.outputs.posterior import visible_vertices
 
-__all__ = ["OUTPUT_FILES", "write_fit_outputs"]
+__all__ = ["OUTPUT_FILES", "fit_inference_data", "write_fit_outputs"]
 
 #: Files every result folder holds (specular pictures only for models with specular albedo).
 OUTPUT_FILES = (
@@ -165,8 +165,8 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     write_mesh(out / "mesh.ply", verts, model.triangles, post.diffuse.mean.astype(np.float64),
                gamma=2.2)
     result.save_chain(out / "chain.h5")
-    write_posterior_nc(out / "posterior.nc",
-                       _inference_data(result, loaded, target, clicked, space))
+    write_posterior_nc(out / "posterior.nc", fit_inference_data(
+        result, loaded, {"image": target, "landmarks": clicked}, space))
     (out / "config.json").write_text(cfg.to_json() + "\n", encoding="utf-8")
 
     truth_error = None
@@ -196,11 +196,19 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     return summary
 
 
-def _inference_data(result: FitResult, loaded, image: np.ndarray, clicked: dict, space):
-    """Build the fit's ``InferenceData`` (without warm-up records the burn-in is the warm-up).
+def fit_inference_data(result: FitResult, loaded, observed: dict, space):
+    """Build a fit's ``InferenceData`` with its provenance (``posterior.nc``).
 
-    ``space`` (the model's colour space) goes into the attrs: the derived
-    ``albedo_mean`` of an sRGB-texture model is in its encoded space.
+    Parameters
+    ----------
+    result : FitResult
+        A single or a joint fit's (without warm-up records the burn-in is the warm-up).
+    loaded : mcmcfit.jobs.fit_job.LoadedModel
+    observed : dict
+        ``observed`` of :func:`mcmcfit.outputs.inference_data.inference_data`.
+    space : albedo_model.io.colour_space.ColourSpace
+        The model's colour space, recorded in the attrs: the derived
+        ``albedo_mean`` of an sRGB-texture model is in its encoded space.
     """
     cfg = result.config
     has_warmup = any(getattr(c, "warmup", None) is not None for c in result.chains)
@@ -214,7 +222,7 @@ def _inference_data(result: FitResult, loaded, image: np.ndarray, clicked: dict,
         attrs["albedo_mean_space"] = ("the model's encoded sRGB texture values (a convergence "
                                       "monitor); posterior.npz holds the decoded linear albedo")
     return inference_data(result.chains, result.layout, result.template, loaded.model,
-                          observed={"image": image, "landmarks": clicked}, attrs=attrs,
+                          observed=observed, attrs=attrs,
                           burn_fraction=0.0 if has_warmup else cfg.burn_fraction)
 
 

@@ -28,8 +28,13 @@ Every group carries the ``attrs`` passed in (seed, model hash, software versions
 noise model, ...; nested values as JSON text) and ``template_rps``, the fixed
 parameter fields (.rps V4 JSON) that turn a draw back into parameters.
 
-This module imports :mod:`albedo_model` (io.atomic, io.rps, model, params) and
-:mod:`mcmcfit.sampling` (chain, derived, diagnostics, param_vector).
+A joint fit (several photographs of one face) stores its per-photograph
+blocks with an ``image`` dimension and each photograph's observed image and
+landmarks as ``image<k>`` / ``landmarks<k>``.
+
+This module imports :mod:`albedo_model` (io.atomic, model, params),
+:mod:`mcmcfit.sampling` (chain, chain_file, derived, diagnostics, joint_layout,
+param_vector) and :mod:`proposals.joint`.
 """
 
 from __future__ import annotations
@@ -41,13 +46,15 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from albedo_model.io.atomic import atomic_path
-from albedo_model.io.rps import format_rps_text
 from albedo_model.model import MorphableModel
 from albedo_model.params import RenderParameter
 from mcmcfit.sampling.chain import ChainRecord, ChainResult
+from mcmcfit.sampling.chain_file import template_attrs
 from mcmcfit.sampling.derived import RegionAlbedo, region_albedo_basis, region_albedo_means
 from mcmcfit.sampling.diagnostics import arviz
+from mcmcfit.sampling.joint_layout import JointParamLayout
 from mcmcfit.sampling.param_vector import ParamLayout
+from proposals.joint import JointParameter
 
 __all__ = ["POSTERIOR_FILE", "inference_data", "write_posterior_nc"]
 
@@ -57,40 +64,61 @@ POSTERIOR_FILE = "posterior.nc"
 _COEFFICIENT_BLOCKS = ("shape", "albedo", "expression")
 
 
-def _blocks(layout: ParamLayout) -> dict[str, tuple[list[int], list[str]]]:
-    """Variable name -> (columns, coordinate labels) in layout order."""
-    out: dict[str, tuple[list[int], list[str]]] = {}
+def _blocks(layout: ParamLayout | JointParamLayout) -> dict[str, tuple[np.ndarray, list[str]]]:
+    """Variable name -> (columns, coordinate labels) in layout order.
+
+    The columns are (m,) for a variable of the whole fit and (n_images, m) for
+    a joint fit's per-photograph block (columns ``image<k>.<block>.<label>``).
+    """
+    found: dict[str, dict[int | None, tuple[list[int], list[str]]]] = {}
     for j, name in enumerate(layout.names):
+        image = None
         head, _, rest = name.partition(".")
-        cols, labels = out.setdefault(head, ([], []))
+        if head.startswith("image") and head[5:].isdigit():
+            image = int(head[5:])
+            head, _, rest = rest.partition(".")
+        cols, labels = found.setdefault(head, {}).setdefault(image, ([], []))
         cols.append(j)
         labels.append(rest.replace(".", "_"))
+    out: dict[str, tuple[np.ndarray, list[str]]] = {}
+    for var, per in found.items():
+        if None in per:
+            out[var] = (np.array(per[None][0]), per[None][1])
+        else:
+            out[var] = (np.array([per[k][0] for k in sorted(per)]), per[min(per)][1])
     return out
 
 
-def _posterior_vars(kept: np.ndarray, layout: ParamLayout, basis: RegionAlbedo | None) -> dict:
+def _posterior_vars(kept: np.ndarray, layout: ParamLayout | JointParamLayout,
+                    basis: RegionAlbedo | None) -> dict:
     """Return the posterior ``data_vars`` of (chains, draws, d) kept samples."""
     data: dict = {}
     for var, (cols, labels) in _blocks(layout).items():
-        x = kept[:, :, cols]
+        x = kept[:, :, cols]  # (c, n, m) or (c, n, images, m)
+        lead = ("chain", "draw") + (("image",) if cols.ndim == 2 else ())
         if var == "light":
-            data[var] = (("chain", "draw", "sh_coefficient", "channel"),
-                         x.reshape(*x.shape[:2], layout.n_light, 3))
+            data[var] = (lead + ("sh_coefficient", "channel"),
+                         x.reshape(*x.shape[:-1], x.shape[-1] // 3, 3))
         elif labels == [""]:
-            data[var] = (("chain", "draw"), x[:, :, 0])
+            data[var] = (lead, x[..., 0])
         elif var in _COEFFICIENT_BLOCKS:
-            data[var] = (("chain", "draw", f"{var}_coefficient"), x)
+            data[var] = (lead + (f"{var}_coefficient",), x)
         else:
-            data[var] = (("chain", "draw", f"{var}_param"), x)
+            data[var] = (lead + (f"{var}_param",), x)
     if basis is not None and basis.regions and layout.n_albedo:
         data["albedo_mean"] = (("chain", "draw", "region", "channel"),
                                region_albedo_means(kept[:, :, layout.slice("albedo")], basis))
     return data
 
 
-def _coords(layout: ParamLayout, basis: RegionAlbedo | None) -> dict:
-    coords: dict = {"channel": ["r", "g", "b"], "sh_coefficient": np.arange(layout.n_light)}
-    for var, (_, labels) in _blocks(layout).items():
+def _coords(layout: ParamLayout | JointParamLayout, basis: RegionAlbedo | None) -> dict:
+    blocks = _blocks(layout)
+    coords: dict = {"channel": ["r", "g", "b"]}
+    if "light" in blocks:
+        coords["sh_coefficient"] = np.arange(len(blocks["light"][1]) // 3)
+    if isinstance(layout, JointParamLayout):
+        coords["image"] = np.arange(layout.n_images)
+    for var, (_, labels) in blocks.items():
         if var in _COEFFICIENT_BLOCKS:
             coords[f"{var}_coefficient"] = np.arange(len(labels))
         elif var != "light" and labels != [""]:
@@ -134,8 +162,8 @@ def _stats_vars(recs: Sequence[ChainRecord], start: int, stop: int,
     return {k: (("chain", "draw"), np.stack(v) if v else np.zeros((0, 0))) for k, v in cols.items()}
 
 
-def _attrs(attrs: Mapping | None, template: RenderParameter) -> dict:
-    out = {"created_by": "mcmcfit", "template_rps": format_rps_text(template)}
+def _attrs(attrs: Mapping | None, template: RenderParameter | JointParameter) -> dict:
+    out = {"created_by": "mcmcfit", **template_attrs(template)}
     for k, v in (attrs or {}).items():
         if isinstance(v, (str, int, float, np.integer, np.floating)) and not isinstance(v, bool):
             out[str(k)] = v
@@ -152,26 +180,42 @@ def _dataset(data: dict, coords: dict, draws: np.ndarray, chains: np.ndarray, at
     return xr.Dataset(data, coords={**c, "chain": chains, "draw": draws}, attrs=attrs)
 
 
+def _observed_vars(image, landmarks: Mapping | None, suffix: str = "") -> tuple[dict, dict]:
+    """One photograph's observed variables (``image``, ``landmarks``), names ending in ``suffix``."""
+    data, coords = {}, {}
+    if image is not None:
+        img = np.asarray(image, np.float64)
+        dims = ("y", "x") if not suffix else (f"y{suffix}", f"x{suffix}")
+        data[f"image{suffix}"] = (dims + ("channel",), img)
+        coords["channel"] = ["r", "g", "b"][:img.shape[2]]
+    if landmarks:
+        names = sorted(landmarks)
+        dim = f"landmark{suffix}"
+        data[f"landmarks{suffix}"] = ((dim, "xy"), np.array(
+            [np.asarray(landmarks[n], np.float64)[:2] for n in names]))
+        coords.update({dim: names, "xy": ["x", "y"]})
+    return data, coords
+
+
 def _observed(observed: Mapping | None, attrs: dict):
     import xarray as xr
 
     if not observed:
         return None
-    data, coords = {}, {}
-    if observed.get("image") is not None:
-        img = np.asarray(observed["image"], np.float64)
-        data["image"] = (("y", "x", "channel"), img)
-        coords["channel"] = ["r", "g", "b"][:img.shape[2]]
-    lms = observed.get("landmarks")
-    if lms:
-        names = sorted(lms)
-        data["landmarks"] = (("landmark", "xy"), np.array([np.asarray(lms[n], np.float64)[:2]
-                                                            for n in names]))
-        coords.update(landmark=names, xy=["x", "y"])
+    if "images" in observed:  # a joint fit: image<k>, landmarks<k> with their own dimensions
+        data, coords = {}, {}
+        lms = observed.get("landmarks") or [None] * len(observed["images"])
+        for k, (img, lm) in enumerate(zip(observed["images"], lms)):
+            d, c = _observed_vars(img, lm, str(k))
+            data.update(d)
+            coords.update(c)
+    else:
+        data, coords = _observed_vars(observed.get("image"), observed.get("landmarks"))
     return xr.Dataset(data, coords=coords, attrs=attrs) if data else None
 
 
-def inference_data(chains: Sequence[ChainResult], layout: ParamLayout, template: RenderParameter,
+def inference_data(chains: Sequence[ChainResult], layout: ParamLayout | JointParamLayout,
+                   template: RenderParameter | JointParameter,
                    model: MorphableModel | RegionAlbedo | None, *,
                    observed: Mapping | None = None, attrs: Mapping | None = None,
                    burn_fraction: float = 0.0):
@@ -183,15 +227,20 @@ def inference_data(chains: Sequence[ChainResult], layout: ParamLayout, template:
         Chains without an image stage are left out; the others are cut to the
         shortest (in kept draws). When no chain ran the image stage, the landmark
         stage is stored instead (attribute ``stage``: "landmarks").
-    layout : ParamLayout
-        Columns of the samples.
-    template : RenderParameter
-        The fit's fixed fields (stored as ``template_rps``).
+    layout : ParamLayout or JointParamLayout
+        Columns of the samples. A joint fit's per-photograph blocks get an
+        ``image`` dimension after ``draw`` (``pose`` (chain, draw, image,
+        pose_param), ...); its shared ``shape`` and ``albedo`` do not.
+    template : RenderParameter or JointParameter
+        The fit's fixed fields (stored as ``template_rps``, or
+        ``template_rps_images`` for a joint fit).
     model : MorphableModel or RegionAlbedo, optional
         For the derived ``albedo_mean`` (left out when None or without regions).
     observed : mapping, optional
         ``"image"``: (H, W, 3) float, the target as fitted; ``"landmarks"``:
-        mapping name -> (2,) pixels.
+        mapping name -> (2,) pixels. A joint fit: ``"images"`` and
+        ``"landmarks"`` as lists, one per photograph (stored as ``image<k>``
+        and ``landmarks<k>``).
     attrs : mapping, optional
         Provenance for every group: seed, model hash, software version, noise
         model, ... (values that are not str or numbers are stored as JSON).

@@ -18,13 +18,22 @@ Files (the caller makes the folder atomic):
 ``traces.png``                      log densities and a few parameters per step, per chain
 ``samples.npz``                     every chain's kept draws (``samples`` (chains, draws, d),
                                     ``names``) and per-step log densities
+``chain.h5``                        every chain, every stage (one template per photograph)
+``posterior.nc``                    the image stage as an ArviZ ``InferenceData``: the
+                                    shared ``shape`` and ``albedo``, every photograph's
+                                    blocks with an ``image`` dimension, ``observed_data``
+                                    ``image<k>`` and ``landmarks<k>``
+``mesh.ply``                        the identity's mean shape (neutral expression) with the
+                                    posterior-mean diffuse albedo (gamma 2.2)
 ``config.json``, ``summary.json``   the settings; the summary (as a single fit's, with
-                                    ``images``: per photograph its inputs, noise model,
-                                    visible vertices and landmark error)
+                                    ``images``: per photograph its inputs, visible vertices
+                                    and landmark error)
+``report.html``                     everything above on one page, a row per photograph
 ==================================  ====================================================
 
 This module imports :mod:`albedo_model` (io, render.renderer), :mod:`mcmcfit.fitting.result`,
-:mod:`mcmcfit.targets.landmarks` and the other :mod:`mcmcfit.outputs` modules.
+:mod:`mcmcfit.targets.landmarks` and the other :mod:`mcmcfit.outputs` modules
+(:mod:`~mcmcfit.outputs.report` when the report is written).
 """
 
 from __future__ import annotations
@@ -38,6 +47,7 @@ import numpy as np
 
 from albedo_model.io.colour_space import model_colour_space
 from albedo_model.io.image_io import write_png
+from albedo_model.io.mesh_export import write_mesh
 from albedo_model.io.rps import write_rps
 from albedo_model.render.renderer import Renderer
 from mcmcfit.fitting.result import FitResult
@@ -53,6 +63,8 @@ from mcmcfit.outputs.figures import (
     save_uncertainty_map,
     uncertainty_scale,
 )
+from mcmcfit.outputs.folder import fit_inference_data
+from mcmcfit.outputs.inference_data import write_posterior_nc
 from mcmcfit.outputs.posterior import visible_vertices
 from mcmcfit.outputs.summary import build_summary, json_safe, landmark_errors
 from mcmcfit.outputs.truth import Truth, albedo_error
@@ -156,6 +168,15 @@ def write_joint_outputs(folder: str | os.PathLike, result: FitResult, loaded,
                             names=np.array(result.layout.names),
                             log_lik_img=np.stack([r.log_lik_img[:steps] for r in recs]),
                             log_prior=np.stack([r.log_prior[:steps] for r in recs]))
+    shape = model.shape_instance(np.asarray(mean.images[0].momo.shape))  # neutral expression
+    write_mesh(out / "mesh.ply", shape, model.triangles, post.diffuse.mean.astype(np.float64),
+               gamma=2.2)
+    result.save_chain(out / "chain.h5")
+    clicked = [target_landmarks(lm) if lm is not None else {}
+               for lm in (landmarks or [None] * len(images))]
+    write_posterior_nc(out / "posterior.nc", fit_inference_data(
+        result, loaded, {"images": [np.clip(np.asarray(im, np.float64), 0.0, 1.0)
+                                    for im in images], "landmarks": clicked}, space))
     (out / "config.json").write_text(cfg.to_json() + "\n", encoding="utf-8")
     truth_error = albedo_error(post, truth) if truth is not None else None
     albedo = {"colour_space": "linear sRGB", "interval": post.diffuse.level,
@@ -168,10 +189,14 @@ def write_joint_outputs(folder: str | os.PathLike, result: FitResult, loaded,
     files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     summary = build_summary(result, model_sha256=loaded.sha256, model_uri=loaded.uri,
                             inputs={"images": len(images)}, landmark_err=None, albedo=albedo,
-                            files=[*files, "summary.json"], model=model_colour_record(space),
+                            files=[*files, "summary.json", "report.html"],
+                            model=model_colour_record(space),
                             truth_error=truth_error,
                             extra_timings={"outputs_s": time.perf_counter() - t0})
     summary["images"] = json_safe(per_image)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n",
                                       encoding="utf-8")
+    from mcmcfit.outputs.report import write_report
+
+    write_report(out / "report.html", summary)
     return summary

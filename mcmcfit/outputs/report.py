@@ -6,8 +6,10 @@ for models with a residual variance, the posterior predictive std beside it),
 the traces, the acceptance table per proposal, the convergence diagnostics,
 the timings and provenance, and (for synthetic cases) the error against the
 truth, with the coverage of both the predictive and the coefficient-only
-intervals. Pictures are referenced by relative path, so the folder can be
-moved as a whole.
+intervals. A joint fit's page (``summary["images"]``) has a row per
+photograph (its target, fit and landmarks from ``image<k>/``) and the map of
+which photographs saw each vertex. Pictures are referenced by relative path,
+so the folder can be moved as a whole.
 
 This module imports only :mod:`mcmcfit.outputs.html_style`.
 """
@@ -129,6 +131,24 @@ def _uncertainty_note(albedo: dict) -> str:
     return ""
 
 
+def _photographs(summary: dict, have) -> list[str]:
+    """Show a joint fit's photographs: a table, then per photograph its target, fit and landmarks."""
+    images = summary.get("images") or []
+    rows = [[f"image{k}", im.get("image", "(array)"), im.get("landmarks"),
+             im.get("visible_vertices"), im.get("landmark_rmse_px")]
+            for k, im in enumerate(images)]
+    parts = [f"<h2>Photographs ({len(images)}, one identity)</h2>",
+             _table(["", "image", "landmarks", "vertices seen", "landmark RMSE (px)"], rows, 3)]
+    for k in range(len(images)):
+        parts.append(f"<h3>image{k}</h3>")
+        for name, cap in (("target.png", "target"), ("fit.png", "best fit over the target"),
+                          ("fit_landmarks.png", "landmarks, fit and difference")):
+            if have(f"image{k}/{name}"):
+                parts.append(_figure(f"image{k}/{name}", f"image{k}: {cap}",
+                                     "" if name == "fit_landmarks.png" else "small"))
+    return parts
+
+
 def render_report(summary: dict, files: set[str] | None = None) -> str:
     """Build the report page for ``summary`` (a ``summary.json`` dict) as HTML text.
 
@@ -136,8 +156,9 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
     ----------
     summary : dict
     files : set of str, optional
-        Names present in the folder; pictures not in it are left out (all are
-        assumed present when None).
+        Paths present in the folder, relative to it (``fit.png``,
+        ``image0/fit.png``); pictures not in it are left out (all are assumed
+        present when None).
     """
     have = (lambda name: True) if files is None else (lambda name: name in files)
     t = summary.get("timings", {})
@@ -157,7 +178,9 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
             f"Rule: {html.escape(str(conv.get('rule')))}. Worst: {worst or 'too few draws'}. "
             "Run more steps (--steps) or more chains (--chains).</div>")
     inputs = summary.get("inputs", {})
+    joint = bool(summary.get("images"))
     overview = [
+        ["photographs", len(summary["images"])] if joint else
         ["image", inputs.get("image", "(array)")],
         ["landmarks", inputs.get("landmarks") or ("face box" if inputs.get("face_box") else "–")],
         ["model", summary.get("model_uri") or "–"],
@@ -183,7 +206,10 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
             pe = truth["pose_error_deg"]
             parts.append(_table(["pose error (deg)", "yaw", "pitch", "roll"],
                                 [["best sample", pe.get("yaw"), pe.get("pitch"), pe.get("roll")]]))
-    parts.append("<h2>Target and fit</h2>")
+    if joint:
+        parts += _photographs(summary, have)
+    else:
+        parts.append("<h2>Target and fit</h2>")
     for name, cap in (("target.png", "target"), ("fit.png", "best fit rendered over the target")):
         if have(name):
             parts.append(_figure(name, cap, "small"))
@@ -213,6 +239,9 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
                     parts.append(_figure(name, f"{part}, {view} view",
                                          "small" if kind == "albedo" else ""))
             parts.append("<br>")
+        if kind == "uncertainty" and have("seen_frontal.png"):
+            parts.append(_figure("seen_frontal.png", "share of the photographs that saw each "
+                                 "vertex (black: none; red outline on the maps above)", "small"))
     if have("traces.png"):
         parts += ["<h2>Traces</h2>", _figure("traces.png", "per-step log densities and samples")]
     parts += ["<h2>Acceptance per proposal (image stage, all chains)</h2>",
@@ -233,5 +262,5 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
 def write_report(path: str | os.PathLike, summary: dict) -> None:
     """Write ``report.html`` for ``summary`` beside the pictures it shows."""
     p = Path(path)
-    files = {f.name for f in p.parent.iterdir()}
+    files = {f.relative_to(p.parent).as_posix() for f in p.parent.rglob("*") if f.is_file()}
     p.write_text(render_report(summary, files), encoding="utf-8")

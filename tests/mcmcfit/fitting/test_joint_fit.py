@@ -91,6 +91,47 @@ def test_the_result_folder_holds_both_photographs_and_one_albedo(files, fitted):
         assert (out / name).is_file()
 
 
+def test_chain_file_posterior_nc_and_report_describe_the_joint_fit(files, fitted):
+    import arviz as az
+
+    from mcmcfit.sampling.chain_file import read_chains_h5
+    from mcmcfit.sampling.joint_layout import JointParamLayout
+    from proposals.joint import JointParameter
+
+    model = files[1]
+    out = fitted[1]
+    chains, layout, _ = read_chains_h5(out / "chain.h5")
+    assert isinstance(layout, JointParamLayout) and layout.n_images == 2
+    with np.load(out / "samples.npz") as z:
+        assert list(z["names"]) == list(layout.names)
+        np.testing.assert_array_equal(z["samples"][0], chains[0].stage2.samples[:z["samples"].shape[1]])
+    best = chains[0].stage2.best_image.params
+    assert isinstance(best, JointParameter)
+    assert best.images[0].momo.albedo is best.images[1].momo.albedo  # one identity, read back
+    assert abs(best.images[0].pose.yaw - YAWS[0]) < 0.1
+    assert abs(best.images[1].pose.yaw - YAWS[1]) < 0.1
+
+    idata = az.from_netcdf(out / "posterior.nc")
+    post = idata.posterior
+    assert post["pose"].dims == ("chain", "draw", "image", "pose_param")
+    assert post["light"].dims[:3] == ("chain", "draw", "image")
+    assert post["albedo"].dims == ("chain", "draw", "albedo_coefficient")  # shared: no image dim
+    kept = chains[0].stage2.samples
+    yaw = post["pose"].sel(image=1, pose_param="yaw").values[0]
+    np.testing.assert_allclose(yaw, kept[:yaw.size, layout.index("image1.pose.yaw")])
+    assert "template_rps_images" in post.attrs
+    assert {"image0", "image1", "landmarks0", "landmarks1"} <= set(idata.observed_data.data_vars)
+    assert az.summary(idata, var_names=["albedo"], kind="diagnostics").shape[0] == post["albedo"].shape[2]
+
+    report = (out / "report.html").read_text()
+    for name in ("image0/fit.png", "image1/target.png", "seen_frontal.png",
+                 "uncertainty_diffuse_frontal.png"):
+        assert f"src='{name}'" in report
+    assert "Photographs (2, one identity)" in report
+    assert (out / "mesh.ply").is_file()
+    assert model.n_vertices == len(np.load(out / "posterior.npz")["visible"])
+
+
 def test_bad_inputs_give_one_line_and_write_nothing(files, tmp_path, capsys):
     root = files[0]
     out = tmp_path / "never"
