@@ -6,12 +6,14 @@ kept steps and wall time (``summary.json`` ``stopping.checks``).
 chain's kept draws up to each check (after the fit's burn-in fraction), and
 scores their posterior mean and 90 % intervals against the true diffuse albedo
 the way the fit's own summary does (:func:`mcmcfit.outputs.accuracy.albedo_score`:
-predictive intervals when the model has a residual variance; an sRGB-texture
+predictive intervals when the model has a residual variance, scaled as the
+fit's ``posterior.npz`` says (``diffuse_residual_scale``, estimated once at
+the end of the fit, :mod:`mcmcfit.outputs.residual_scale`); an sRGB-texture
 model's draws decoded first). At most ``max_draws`` evenly spaced draws are
 scored per check (interval ends from a few hundred draws move the coverage by
 about a point; all draws of a long chain would take minutes per check).
 
-This module imports :mod:`mcmcfit.outputs.accuracy` and
+This module imports :mod:`mcmcfit.outputs` (accuracy, residual_scale) and
 :mod:`mcmcfit.sampling` (chain, chain_file).
 """
 
@@ -22,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from mcmcfit.outputs.accuracy import albedo_score
+from mcmcfit.outputs.residual_scale import scale_residual_variance
 from mcmcfit.sampling.chain import stacked_samples
 from mcmcfit.sampling.chain_file import read_chains_h5
 
@@ -65,6 +68,11 @@ def checkpoint_scores(fit_dir: Path, summary: dict, model, true_diffuse: np.ndar
     if not checks or not path.is_file():
         return []
     burn = float((summary.get("config") or {}).get("burn_fraction", 0.0) or 0.0)
+    post = Path(fit_dir) / "posterior.npz"
+    if post.is_file():
+        with np.load(post) as z:
+            if "diffuse_residual_scale" in z:
+                model = scale_residual_variance(model, np.asarray(z["diffuse_residual_scale"]))
     chains, layout, _ = read_chains_h5(path)
     records = [c.stage2 for c in chains if c.stage2 is not None]
     out = []

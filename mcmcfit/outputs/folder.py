@@ -51,6 +51,7 @@ from mcmcfit.targets.landmarks import target_landmarks
 from mcmcfit.outputs.albedo_decoding import model_colour_record
 from mcmcfit.outputs.albedo_summary import (
     albedo_interval_fields,
+    estimate_residual_scale,
     posterior_albedo,
     write_posterior_npz,
 )
@@ -125,7 +126,8 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     shown = np.clip(rendered.image, 0.0, 1.0) if space.is_srgb else encode_display(rendered.image)
     fitted = rendered._replace(image=np.asarray(shown, np.float32))
     visible = visible_vertices(renderer, state)
-    post = posterior_albedo(result, model, visible)
+    post = posterior_albedo(result, model, visible,
+                            residual_scale=estimate_residual_scale(result, model, [mean], [image]))
     write_posterior_npz(out / "posterior.npz", post)
     write_rps(out / "best.rps", best)
     write_rps(out / "mean.rps", mean)

@@ -54,6 +54,7 @@ from mcmcfit.fitting.result import FitResult
 from mcmcfit.outputs.albedo_decoding import model_colour_record
 from mcmcfit.outputs.albedo_summary import (
     albedo_interval_fields,
+    estimate_residual_scale,
     posterior_albedo,
     write_posterior_npz,
 )
@@ -139,7 +140,8 @@ def write_joint_outputs(folder: str | os.PathLike, result: FitResult, loaded,
                           "landmark_rmse_px": None if err is None else err["rmse_px"]})
     seen = np.array(seen)
     visible = seen.any(axis=0)
-    post = posterior_albedo(result, model, visible)
+    post = posterior_albedo(result, model, visible, residual_scale=estimate_residual_scale(
+        result, model, list(mean.images), images))
     write_posterior_npz(out / "posterior.npz", post)
     with np.load(out / "posterior.npz") as z:
         arrays = dict(z)

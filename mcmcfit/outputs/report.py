@@ -115,19 +115,35 @@ def _truth_table(truth: dict) -> str:
 
 def _uncertainty_note(albedo: dict) -> str:
     """One paragraph saying which standard deviations the maps show."""
+    scale = (albedo.get("residual_scale") or {})
+    s2 = scale.get("scale_rgb")
     if albedo.get("predictive"):
         res = (albedo.get("residual_variance") or {}).get("diffuse") or {}
         rms = ", ".join(_fmt(v, 3) for v in res.get("rms_rgb") or [])
+        if s2 is not None and scale.get("base") == "unit":
+            what = ("the out-of-span variance of the face, which the model does not provide, "
+                    "estimated from the photograph(s) by the covariance of neighbouring "
+                    "pixels' residuals (per channel R, G, B: " + ", ".join(_fmt(v, 3) for v in s2)
+                    + f"; RMS {rms})")
+        elif s2 is not None:
+            what = ("the model's residual variance (the out-of-span variation of its training "
+                    "faces, by leave-one-out) scaled to this face: the photograph(s) show "
+                    + " / ".join(_fmt(v, 3) for v in s2) + " times that variance in R / G / B "
+                    f"(from the covariance of neighbouring pixels' residuals; diffuse RMS {rms})")
+        else:
+            what = ("the model's residual variance (the out-of-span variation of faces, "
+                    f"estimated by leave-one-out over the training subjects; diffuse RMS per "
+                    f"channel R, G, B: {rms})")
         return ("<p>Left: the std of the coefficients' posterior alone. Right: the posterior "
-                "predictive std, which adds the model's residual variance (the out-of-span "
-                "variation of faces, estimated by leave-one-out over the training subjects; "
-                f"diffuse RMS per channel R, G, B: {rms}). The intervals in posterior.npz "
-                "and the coverage above are the predictive ones (the coefficient-only ones "
-                "are stored beside them).</p>")
+                f"predictive std, which adds {what}. The intervals in posterior.npz and the "
+                "coverage above are the predictive ones (the coefficient-only ones are stored "
+                "beside them).</p>")
     if "predictive" in albedo:
+        note = scale.get("note") or ""
         return ("<p>Coefficient-only std: the model has no residual variance (for example an "
-                "AlbedoMM or BFM file), so what it cannot represent is not in the maps or the "
-                "intervals.</p>")
+                "AlbedoMM or BFM file) and none was estimated from the photograph"
+                + (f" ({html.escape(note)})" if note else "") + ", so what the model cannot "
+                "represent is not in the maps or the intervals.</p>")
     return ""
 
 

@@ -103,5 +103,5 @@ def std_maps(part) -> list[tuple[str, np.ndarray]]:
     """
     maps = [("coefficients only", np.asarray(part.coefficient_only().std, np.float64).mean(1))]
     if part.predictive:
-        maps.append(("predictive (+ model residual)", np.asarray(part.std, np.float64).mean(1)))
+        maps.append(("predictive (+ out-of-span variance)", np.asarray(part.std, np.float64).mean(1)))
     return maps

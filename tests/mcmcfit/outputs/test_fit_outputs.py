@@ -87,10 +87,16 @@ def test_posterior_npz_matches_the_chains(result_folder, small_model):
     cols = layout.slice("albedo")
     pooled = np.concatenate([c.stage2.samples[int(CFG.burn_fraction * c.stage2.samples.shape[0]):
                                               , cols] for c in chains])
-    ref = albedo_posterior(small_model.diffuse, pooled)
+    ref = albedo_posterior(small_model.diffuse, pooled)  # the model has no residual variance
     np.testing.assert_allclose(post["diffuse_mean"], ref.mean, atol=1e-6)
-    np.testing.assert_allclose(post["diffuse_hi"], ref.hi, atol=1e-6)
+    np.testing.assert_allclose(post["diffuse_coef_hi"], ref.hi, atol=1e-6)
     assert np.all(post["diffuse_lo"] <= post["diffuse_hi"])
+    # the predictive intervals add the out-of-span variance read off the photograph
+    # (mcmcfit.outputs.residual_scale): per channel, the same for every vertex
+    scale = post["diffuse_residual_scale"]
+    assert bool(post["diffuse_predictive"]) and scale.shape == (3,) and np.all(scale >= 0)
+    np.testing.assert_allclose(post["diffuse_std"] ** 2, ref.std ** 2 + scale[None, :],
+                               rtol=1e-4, atol=1e-9)
     # visible: vertices hit when rendering best.rps
     best = read_rps(out / "best.rps")
     r = Renderer(small_model, threads=1)

@@ -59,7 +59,7 @@ def test_npz_summary_fields_and_maps(tmp_path):
     assert (fields["diffuse_std_predictive_visible_mean"]
             > fields["diffuse_std_coefficients_visible_mean"])
     labels = [label for label, _ in std_maps(post)]
-    assert labels == ["coefficients only", "predictive (+ model residual)"]
+    assert labels == ["coefficients only", "predictive (+ out-of-span variance)"]
     plain, _ = _post(False)
     pa = PosteriorAlbedo(plain, None, visible, 300)
     fields = albedo_interval_fields(pa)
