@@ -80,10 +80,14 @@ class ResidualEvidence(NamedTuple):
     pairs: int
 
 
-def _adjacent(values: np.ndarray, ok: np.ndarray) -> np.ndarray:
-    """Mean over horizontally and vertically adjacent ``ok`` pairs of ``v_p * v_q``, per channel."""
-    h = ok[:, :-1] & ok[:, 1:]
-    v = ok[:-1, :] & ok[1:, :]
+def _pairs(ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Masks of horizontally and vertically adjacent pixel pairs that are both ``ok``."""
+    return ok[:, :-1] & ok[:, 1:], ok[:-1, :] & ok[1:, :]
+
+
+def _adjacent(values: np.ndarray, pairs: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Mean over the adjacent pairs of ``v_p * v_q``, per channel."""
+    h, v = pairs
     total = ((values[:, :-1] * values[:, 1:])[h].sum(axis=0)
              + (values[:-1, :] * values[1:, :])[v].sum(axis=0))
     return total / max(int(h.sum() + v.sum()), 1)
@@ -153,14 +157,14 @@ def residual_evidence(model: MorphableModel, params: RenderParameter, image: np.
     med = np.median(gain[mask], axis=0) if mask.any() else np.ones(3)
     ok = (binary_erosion(mask, iterations=EROSION) & np.all(target < 0.95, axis=-1)
           & np.all(gain > 0.25 * np.maximum(med, 1e-6), axis=-1))
-    h_pairs = ok[:, :-1] & ok[:, 1:]
-    v_pairs = ok[:-1, :] & ok[1:, :]
-    pairs = int(h_pairs.sum() + v_pairs.sum())
+    adjacent = _pairs(ok)
+    pairs = int(adjacent[0].sum() + adjacent[1].sum())
     if pairs < MIN_PAIRS:
         return None
     safe = np.where(ok[..., None], gain, 1.0)
-    lag1 = _adjacent(np.where(ok[..., None], (target - base) / safe, 0.0), ok)
-    unit = np.mean([_adjacent(np.where(ok[..., None], (render(j)[0] - base) / safe, 0.0), ok)
+    lag1 = _adjacent(np.where(ok[..., None], (target - base) / safe, 0.0), adjacent)
+    unit = np.mean([_adjacent(np.where(ok[..., None], (render(j)[0] - base) / safe, 0.0),
+                              adjacent)
                     for j in range(1, fields.shape[1])], axis=0) / shrink ** 2
     return ResidualEvidence(lag1, unit, pairs)
 
