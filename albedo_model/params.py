@@ -38,10 +38,12 @@ class Block(enum.Flag):
     LIGHT = enum.auto()
     COLOR_TRANSFORM = enum.auto()
     SPECULAR_EXPONENT = enum.auto()
+    DIRECTIONAL = enum.auto()
 
     GEOMETRY = SHAPE | EXPRESSION
     RAYS = POSE | CAMERA
-    ALL = SHAPE | EXPRESSION | POSE | CAMERA | ALBEDO | LIGHT | COLOR_TRANSFORM | SPECULAR_EXPONENT
+    ALL = (SHAPE | EXPRESSION | POSE | CAMERA | ALBEDO | LIGHT | COLOR_TRANSFORM | SPECULAR_EXPONENT
+           | DIRECTIONAL)
 
 
 def _vec(x, n: int) -> tuple[float, ...]:
@@ -118,7 +120,13 @@ class SHLight(NamedTuple):
 
 
 class DirectionalLight(NamedTuple):
-    """Directional light (Lambert + Blinn-Phong), towards ``direction`` (world frame)."""
+    """Directional light (Lambert + Blinn-Phong), towards ``direction`` (world frame).
+
+    A fit samples it as an azimuth and an elevation (:meth:`angles`,
+    :meth:`from_angles`): ``direction = (sin az cos el, sin el, cos az cos el)``,
+    so (0, 0) is the camera's direction (+z) and a positive azimuth lights the
+    image's right side (+x), a positive elevation comes from above (+y).
+    """
 
     ambient: tuple[float, float, float] = (0.0, 0.0, 0.0)
     diffuse: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -130,6 +138,26 @@ class DirectionalLight(NamedTuple):
     def enabled(self) -> bool:
         """True when the light contributes anything."""
         return any(v != 0 for v in (*self.ambient, *self.diffuse, *self.specular))
+
+    def angles(self) -> tuple[float, float]:
+        """Return ``(azimuth, elevation)`` (rad) of :attr:`direction` (see the class notes)."""
+        d = np.asarray(self.direction, np.float64)
+        d = d / np.linalg.norm(d)
+        return float(np.arctan2(d[0], d[2])), float(np.arcsin(np.clip(d[1], -1.0, 1.0)))
+
+    @classmethod
+    def from_angles(cls, azimuth: float, elevation: float, diffuse, *,
+                    specular=None, shininess: float = 10.0) -> DirectionalLight:
+        """Return a light from ``(azimuth, elevation)`` (rad) with RGB ``diffuse`` (no ambient).
+
+        ``specular`` defaults to ``diffuse`` (the same light makes both terms).
+        """
+        ca = float(np.cos(elevation))
+        direction = (float(np.sin(azimuth)) * ca, float(np.sin(elevation)),
+                     float(np.cos(azimuth)) * ca)
+        diffuse = _vec(diffuse, 3)
+        return cls((0.0, 0.0, 0.0), diffuse, direction,
+                   diffuse if specular is None else _vec(specular, 3), float(shininess))
 
 
 #: Weights of the luminance ``Y(c)`` that the colour transform's contrast mixes in.

@@ -14,13 +14,14 @@ from typing import NamedTuple
 import numpy as np
 
 from albedo_model.errors import InputError
-from albedo_model.params import ColorTransform, RenderParameter, SHLight
+from albedo_model.params import ColorTransform, DirectionalLight, RenderParameter, SHLight
 
 __all__ = ["ENTRIES", "SceneLayout"]
 
 #: The entries of a :class:`SceneLayout` vector, in order (sizes in :meth:`SceneLayout.sizes`).
 ENTRIES = ("shape", "expression", "angles", "translation", "focal_length", "principal_point",
-           "light", "gain", "contrast", "offset", "specular_exponent", "albedo")
+           "light", "gain", "contrast", "offset", "specular_exponent", "albedo",
+           "light_angles", "light_intensity")
 
 
 class SceneLayout(NamedTuple):
@@ -40,27 +41,41 @@ class SceneLayout(NamedTuple):
     offset
     specular_exponent   1
     albedo              ka    ``momo.albedo`` (shared diffuse/specular coefficients)
+    light_angles        2/0   the directional light's azimuth and elevation (rad,
+                              :meth:`~albedo_model.params.DirectionalLight.angles`)
+    light_intensity     3/0   its RGB strength (diffuse = specular)
     ==================  ====  ===================================================
+
+    The directional light's entries are empty unless ``directional``; with them,
+    :meth:`with_vector` writes a light without ambient term whose specular colour
+    is its diffuse colour, keeping the template's shininess. The angles' chart
+    is ``|az| < pi``, ``|el| < pi/2`` (the sphere but a seam): a vector outside
+    it gets a NaN strength, which the prior gives density 0, so a move across
+    the seam is rejected rather than re-expressed (which would break the
+    reversibility of moves drawn in these coordinates).
     """
 
     n_shape: int
     n_expression: int
     n_light: int
     n_albedo: int
+    directional: bool = False
 
     @classmethod
     def for_params(cls, params: RenderParameter) -> SceneLayout:
-        """Return the layout of ``params``' coefficient counts."""
+        """Return the layout of ``params``' coefficient counts (directional iff its light is on)."""
         return cls(len(params.momo.shape), len(params.momo.expression),
                    int(np.asarray(params.environment_map.coefficients).shape[0]),
-                   len(params.momo.albedo))
+                   len(params.momo.albedo), bool(params.directional_light.enabled))
 
     def sizes(self) -> dict[str, int]:
         """Entry name -> size, in vector order."""
         return {"shape": self.n_shape, "expression": self.n_expression, "angles": 3,
                 "translation": 3, "focal_length": 1, "principal_point": 2,
                 "light": 3 * self.n_light, "gain": 3, "contrast": 1, "offset": 3,
-                "specular_exponent": 1, "albedo": self.n_albedo}
+                "specular_exponent": 1, "albedo": self.n_albedo,
+                "light_angles": 2 if self.directional else 0,
+                "light_intensity": 3 if self.directional else 0}
 
     def slices(self) -> dict[str, slice]:
         """Entry name -> its slice of the vector."""
@@ -84,6 +99,8 @@ class SceneLayout(NamedTuple):
                  p.pose.translation, (p.camera.focal_length,), p.camera.principal_point,
                  np.asarray(p.environment_map.coefficients).reshape(-1), ct.gain,
                  (ct.contrast,), ct.offset, (p.specular_exponent,), p.momo.albedo)
+        if self.directional:
+            parts += (p.directional_light.angles(), p.directional_light.diffuse)
         return np.concatenate([np.asarray(v, np.float64).reshape(-1) for v in parts])
 
     def with_vector(self, params: RenderParameter, x: np.ndarray) -> RenderParameter:
@@ -98,6 +115,13 @@ class SceneLayout(NamedTuple):
 
         p = params
         a, t = floats("angles"), floats("translation")
+        if self.directional:
+            az, el = floats("light_angles")
+            strength = floats("light_intensity")
+            if not (abs(az) < np.pi and abs(el) < 0.5 * np.pi):
+                strength = (np.nan,) * 3  # outside the angles' chart: the prior rejects it
+            p = p._replace(directional_light=DirectionalLight.from_angles(
+                az, el, strength, shininess=p.directional_light.shininess))
         return p._replace(
             pose=p.pose._replace(yaw=a[0], pitch=a[1], roll=a[2], translation=t),
             camera=p.camera._replace(focal_length=float(s["focal_length"][0]),

@@ -26,9 +26,12 @@ raycast             geometry + rays                              ray hits, pixel
                                                                  per-pixel geometry
 albedo              ALBEDO                                       albedo instance, per-
                                                                  pixel albedo
-effects             LIGHT, COLOR_TRANSFORM                       the effect set
-shading             POSE, LIGHT, COLOR_TRANSFORM, SPEC. EXP.     packed shading scalars
-light               raycast + LIGHT, SPECULAR_EXPONENT           per-pixel light transport
+effects             LIGHT, DIRECTIONAL, COLOR_TRANSFORM          the effect set
+shading             POSE, LIGHT, DIRECTIONAL, COLOR_TRANSFORM,   packed shading scalars
+                    SPEC. EXP.
+shadow              raycast + DIRECTIONAL                        cast shadows (a shadow ray
+                                                                 per face pixel)
+light               raycast + LIGHT, DIRECTIONAL, SPEC. EXP.     per-pixel light transport
 landmarks           geometry + rays                              landmark log likelihood
 albedo_bases        raycast                                      interpolated albedo bases
                                                                  at the face pixels
@@ -37,7 +40,8 @@ albedo_system       light + COLOR_TRANSFORM                      the render, lin
 light_data          raycast + ALBEDO, COLOR_TRANSFORM            normals, albedo, targets
                                                                  of the SH light solve
 light_system        raycast + ALBEDO, COLOR_TRANSFORM,           the render, linear in the
-                    SPECULAR_EXPONENT                            SH light
+                    SPECULAR_EXPONENT, DIRECTIONAL               SH light (the directional
+                                                                 light an offset)
 ==================  ===========================================  =======================
 
 This module imports only :mod:`albedo_model.params`.
@@ -55,6 +59,7 @@ __all__ = ["ATOMIC_BLOCKS", "STAGE_DEPS", "BlockVersions", "Kept", "bump", "new_
 
 _GEOMETRY = Block.SHAPE | Block.EXPRESSION
 _RAYS = Block.POSE | Block.CAMERA
+_DIR = Block.DIRECTIONAL
 
 #: Which parameter blocks each cached product reads (a product is stale after a move
 #: that touched any of them).
@@ -63,16 +68,17 @@ STAGE_DEPS: dict[str, Block] = {
     "rays": _RAYS,
     "raycast": _GEOMETRY | _RAYS,
     "albedo": Block.ALBEDO,
-    "effects": Block.LIGHT | Block.COLOR_TRANSFORM,
-    "shading": Block.POSE | Block.LIGHT | Block.COLOR_TRANSFORM | Block.SPECULAR_EXPONENT,
-    "light": _GEOMETRY | _RAYS | Block.LIGHT | Block.SPECULAR_EXPONENT,
+    "effects": Block.LIGHT | _DIR | Block.COLOR_TRANSFORM,
+    "shading": Block.POSE | Block.LIGHT | _DIR | Block.COLOR_TRANSFORM | Block.SPECULAR_EXPONENT,
+    "shadow": _GEOMETRY | _RAYS | _DIR,
+    "light": _GEOMETRY | _RAYS | Block.LIGHT | _DIR | Block.SPECULAR_EXPONENT,
     "landmarks": _GEOMETRY | _RAYS,
     "albedo_bases": _GEOMETRY | _RAYS,
-    "albedo_system": (_GEOMETRY | _RAYS | Block.LIGHT | Block.SPECULAR_EXPONENT
+    "albedo_system": (_GEOMETRY | _RAYS | Block.LIGHT | _DIR | Block.SPECULAR_EXPONENT
                       | Block.COLOR_TRANSFORM),
     "light_data": _GEOMETRY | _RAYS | Block.ALBEDO | Block.COLOR_TRANSFORM,
     "light_system": (_GEOMETRY | _RAYS | Block.ALBEDO | Block.COLOR_TRANSFORM
-                     | Block.SPECULAR_EXPONENT),
+                     | Block.SPECULAR_EXPONENT | _DIR),
 }
 
 #: The single-bit blocks, in :class:`~albedo_model.params.Block` order.

@@ -15,10 +15,10 @@ formation (:func:`~albedo_model.shading.image_formation.pixel_light`,
 directions (the reversed pixel rays).
 
 Visibility is not differentiated (a pixel keeps its triangle, its plane
-extrapolated beyond it); at the cast's parameters the colours equal the
-renderer's image. Principal point, pose scaling, view, near plane and image
-size are constants (:mod:`albedo_model.render.jacobian` differentiates in them
-too); cast shadows are not supported. The dtype is the inputs'.
+extrapolated beyond it, and its cast shadow); at the cast's parameters the
+colours equal the renderer's image. Principal point, pose scaling, view, near
+plane and image size are constants (:mod:`albedo_model.render.jacobian`
+differentiates in them too). The dtype is the inputs'.
 
 This module imports :mod:`albedo_model` (camera, errors, model, params),
 :mod:`albedo_model.render` (instances, normals, pixel_work) and
@@ -42,21 +42,21 @@ from albedo_model.render.instances import ModelInstances
 from albedo_model.render.normals import vertex_normal_columns
 from albedo_model.render.pixel_work import choose_pixel_set
 from albedo_model.shading.effects import Effects, effects_for
-from albedo_model.shading.image_formation import (
-    combine_pixels, pack_shading_params, pixel_light, unpack_shading_params)
-from albedo_model.shading.interpolation import (
-    PixelAlbedo, PixelGeometry, needs_specular_albedo, needs_view, normalise)
+from albedo_model.shading.image_formation import (combine_pixels, pack_shading_params,
+                                                  pixel_light, unpack_shading_params)
+from albedo_model.shading.interpolation import (PixelAlbedo, PixelGeometry,
+                                                needs_specular_albedo, needs_view, normalise)
 
 __all__ = ["DifferentiableModel", "FixedHits", "GeometryParams", "PixelAttributes", "SceneInputs",
            "barycentric_weights", "build_value_and_grad", "euler_rotation_jax", "fixed_hits",
            "geometry_params", "instance_and_normals", "pixel_attributes", "pixel_colours",
            "shade_attributes"]
 
-class GeometryParams(NamedTuple):
-    """The continuous geometry parameters :func:`pixel_colours` is differentiated in (a pytree).
 
-    ``shape``, ``expression`` (ks,), (ke,) coefficients; ``angles`` (3,) yaw, pitch,
-    roll (rad); ``translation`` (3,) (mm); ``focal_length`` () (sensor units).
+class GeometryParams(NamedTuple):
+    """The geometry :func:`pixel_colours` is differentiated in (a pytree).
+
+    Shape, expression (ks,), (ke,); yaw, pitch, roll (rad); translation (mm); focal length.
     """
 
     shape: jax.Array
@@ -75,6 +75,7 @@ class FixedHits(NamedTuple):
     xs, ys : (C,) float32 pixel coordinates (x right, y down; pixel (i, j) is the point (i, j))
     prim_id : (C,) int32 hit triangle of each pixel (0 where ``mask`` is False)
     mask : (C,) bool, True on face pixels
+    shadow : (C,) float32 or None, the directional light's visibility (held, as the triangles)
     """
 
     pixels: np.ndarray
@@ -82,6 +83,7 @@ class FixedHits(NamedTuple):
     ys: jax.Array
     prim_id: jax.Array
     mask: jax.Array
+    shadow: jax.Array | None = None
 
 
 class SceneInputs(NamedTuple):
@@ -121,11 +123,9 @@ def fixed_hits(prim_id: np.ndarray, width: int, height: int,
                capacity: int | None = None) -> tuple[FixedHits, int]:
     """Return the face pixels of a ray cast as :class:`FixedHits`, and the capacity to pass next.
 
-    ``prim_id`` (H W,) int32 is a ray cast's triangle per pixel (-1: miss, row-major,
-    as ``RenderState.prim_id``). ``capacity`` is the previous call's for this image
-    size: padding to the renderer's bucketed pixel-set sizes
-    (:func:`~albedo_model.render.pixel_work.choose_pixel_set`) keeps the number of
-    compiled shapes small.
+    ``prim_id`` (H W,) int32: a ray cast's triangle per pixel (-1: miss, row-major).
+    ``capacity`` is the previous call's for this image size (bucketed pixel-set
+    sizes, :func:`~albedo_model.render.pixel_work.choose_pixel_set`: few compiled shapes).
     """
     prim_id = np.asarray(prim_id, np.int32).reshape(-1)
     pixels, capacity = choose_pixel_set(prim_id, int(height), capacity)
@@ -252,11 +252,12 @@ def pixel_attributes(effects: Effects, orthographic: bool, vertices, normals, an
 def shade_attributes(effects: Effects, attributes: PixelAttributes, scene: SceneInputs,
                      hits: FixedHits) -> tuple[tuple, jax.Array]:
     """Shade per-pixel attributes with the renderer's image formation: ``(rgb, mask)``."""
-    if effects.shadows:
-        raise InputError("differentiable pixels do not support cast shadows")
+    if effects.shadows and hits.shadow is None:
+        raise InputError("cast shadows need the pixels' light visibility (FixedHits.shadow)")
     a = attributes
     params = unpack_shading_params(scene.packed)
-    light = pixel_light(effects, PixelGeometry(hits.mask, a.normal, a.view), params, None)
+    light = pixel_light(effects, PixelGeometry(hits.mask, a.normal, a.view), params,
+                        hits.shadow if effects.shadows else None)
     out = combine_pixels(effects, light, PixelAlbedo(a.diffuse, a.specular), hits.mask, params)
     return out.rgb, out.mask
 
@@ -309,9 +310,8 @@ def build_value_and_grad(effects: Effects, orthographic: bool, readout):
     -----
     Four jitted programs chained by hand: instance and normals; pixel attributes;
     shading + read-out with its gradient in the attributes; the attributes' and the
-    instance's vector-Jacobian products (recomputing their small forwards). One
-    fused program gives the same numbers but takes XLA-CPU 15-30 s to compile; the
-    four take a few seconds (only the shading's depends on ``readout``).
+    instance's vector-Jacobian products. One fused program gives the same numbers
+    but takes XLA-CPU 15-30 s to compile; the four take a few seconds.
     """
     forward, attrs_forward, attrs_backward, instance_backward = _stages(effects, orthographic)
 

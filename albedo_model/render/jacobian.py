@@ -19,10 +19,11 @@ One fused ``jacfwd`` of the whole chain gives the same numbers but XLA-CPU
 fuses the gathers into their consumers and recomputes them per direction
 (about 200 s for 137 directions at 250^2, against about 1 s here).
 
-Visibility is held fixed (the hits' triangles), as in
+Visibility is held fixed (the hits' triangles and cast shadows), as in
 :mod:`~albedo_model.render.differentiable`; the colour transform is always
-applied (so that its entries have derivatives at the identity), the
-directional light and cast shadows are not supported.
+applied (so that its entries have derivatives at the identity). A layout with
+a directional light differentiates in its azimuth, elevation and strength too
+(its specular colour is its diffuse colour, as the layout writes it).
 
 This module imports :mod:`albedo_model.errors`, :mod:`albedo_model.model`,
 :mod:`albedo_model.params`, :mod:`albedo_model.scene_vector`,
@@ -78,6 +79,13 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
         for name, entry in (("specular_exponent", "specular_exponent"), ("color_gain", "gain"),
                             ("color_contrast", "contrast"), ("color_offset", "offset")):
             out = out.at[packed_slice(name)].set(x[sl[entry]])
+        if layout.directional:
+            az, el = x[sl["light_angles"]][0], x[sl["light_angles"]][1]
+            direction = jnp.stack([jnp.sin(az) * jnp.cos(el), jnp.sin(el),
+                                   jnp.cos(az) * jnp.cos(el)])
+            out = out.at[packed_slice("light_direction")].set(direction)
+            for name in ("light_diffuse", "light_specular"):
+                out = out.at[packed_slice(name)].set(x[sl["light_intensity"]])
         return out
 
     def attributes(v, normals, table, x, scene, hits):
@@ -157,6 +165,12 @@ class PixelJacobian:
         Render the specular term (when the model has a specular part).
     background : (3,) float
         Colour of pixels whose hit mask is False.
+    shadows : bool
+        Cast shadows of a directional light (the hits then carry their
+        visibility, ``FixedHits.shadow``).
+    directional_specular_map : bool
+        Scale the directional light's Blinn-Phong term by the specular albedo
+        (as the renderer's).
 
     Notes
     -----
@@ -166,11 +180,14 @@ class PixelJacobian:
     """
 
     def __init__(self, model: MorphableModel, layout: SceneLayout, *, specular: bool = True,
-                 background=(0.0, 0.0, 0.0)):
+                 background=(0.0, 0.0, 0.0), shadows: bool = False,
+                 directional_specular_map: bool = False):
         if layout.n_shape > model.shape.rank or layout.n_albedo > model.diffuse.rank:
             raise InputError("scene layout has more coefficients than the model")
         self.model, self.layout = model, layout
-        self._diff = DifferentiableModel(model, specular=specular, background=background)
+        self.shadows = bool(shadows)
+        self._diff = DifferentiableModel(model, specular=specular, background=background,
+                                         directional_specular_map=directional_specular_map)
         n, k = model.n_vertices, layout.n_albedo
         mean = [model.diffuse.mean.reshape(n, 3)]
         basis = [model.diffuse.scaled_basis[:, :k].reshape(n, 3, k)]
@@ -186,7 +203,7 @@ class PixelJacobian:
         self._geometry = np.r_[sl["shape"], sl["expression"], sl["angles"], sl["translation"],
                                sl["focal_length"], sl["principal_point"]]
         self._shading = np.r_[sl["light"], sl["gain"], sl["contrast"], sl["offset"],
-                              sl["specular_exponent"]]
+                              sl["specular_exponent"], sl["light_angles"], sl["light_intensity"]]
         self._albedo = np.r_[sl["albedo"]]
         #: Column order of the stages' Jacobian (geometry, albedo, shading entries).
         self._order = np.concatenate([self._geometry, self._albedo, self._shading])
@@ -199,9 +216,9 @@ class PixelJacobian:
     def effects(self, params: RenderParameter) -> Effects:
         """Return the effect set the colours are formed with (colour transform always on)."""
         eff = self._diff.effects(params)._replace(color_transform=True)
-        if eff.directional or eff.shadows:
-            raise InputError("the pixel Jacobian does not support a directional light")
-        return eff
+        if eff.directional != self.layout.directional:
+            raise InputError("the scene's directional light does not match the Jacobian's layout")
+        return eff._replace(shadows=bool(self.shadows and eff.directional))
 
     def _prepare(self, params: RenderParameter):
         stages = _cached_stages(self.layout, self.effects(params),

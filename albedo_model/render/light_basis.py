@@ -7,8 +7,9 @@ is linear in the environment map ``L`` (K, 3), the same per channel:
 reflection direction). :func:`light_basis` evaluates ``B`` and ``S`` at the
 state's pixel set with the state's own compiled light stage, three basis
 functions per call (one per colour channel), so that they agree with the
-renderer to float32 rounding. A directional light is not linear in ``L`` and
-is refused.
+renderer to float32 rounding. A directional light is not linear in ``L``: the
+basis is that of the SH light alone (the directional term is an offset that
+the caller reads off the state's light transport).
 
 This module imports :mod:`albedo_model` (camera, params, shading.scalars) and
 :mod:`albedo_model.render` (stages, state).
@@ -19,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from albedo_model.camera import euler_rotation
-from albedo_model.params import SHLight
+from albedo_model.params import DirectionalLight, SHLight
 from albedo_model.render.stages import light_effects, light_stage
 from albedo_model.render.state import RenderState
 from albedo_model.shading.scalars import pack_shading_params
@@ -42,13 +43,14 @@ def light_basis(state: RenderState) -> tuple[np.ndarray, np.ndarray | None] | No
     S : (C, K) float32 or None
         Specular transport (None when the specular term is off).
     None
-        When the scene has a directional light (not linear in the SH light) or no SH light.
+        When the scene has no SH light.
     """
-    effects = light_effects(state.effects)
+    effects = light_effects(state.effects)._replace(directional=False, shadows=False,
+                                                    directional_specular_map=False)
     k = effects.sh_coefficients
-    if effects.directional or k == 0:
+    if k == 0:
         return None
-    p = state.params
+    p = state.params._replace(directional_light=DirectionalLight())
     rotation = euler_rotation(p.pose.roll, p.pose.yaw, p.pose.pitch)
     stage = light_stage(effects)
     geometry = state.pixel_geometry.value

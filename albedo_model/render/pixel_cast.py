@@ -8,7 +8,7 @@ list of pixels with their triangles into the
 functions read, padded to a few distinct sizes.
 
 This module imports :mod:`albedo_model.camera`, :mod:`albedo_model.params` and
-:mod:`albedo_model.render` (differentiable, raycast).
+:mod:`albedo_model.render` (differentiable, raycast, visibility).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from albedo_model.camera import camera_rays, pixel_window
 from albedo_model.params import RenderParameter
 from albedo_model.render.differentiable import FixedHits
 from albedo_model.render.raycast import RayCaster
+from albedo_model.render.visibility import directional_visibility
 
 __all__ = ["PIXEL_BUCKET", "SceneCaster", "hits_at"]
 
@@ -48,6 +49,7 @@ class SceneCaster:
             self._caster = RayCaster(v32, self.model.triangles, threads=self._threads)
         else:
             self._caster.update_vertices(v32)
+        self._caster_vertices = v32.reshape(-1, 3)
         w, h = int(p.image_size.width), int(p.image_size.height)
         if self._rays is None or len(self._rays[0]) != w * h:
             self._rays = (np.empty((w * h, 3), np.float32), np.empty((w * h, 3), np.float32))
@@ -66,6 +68,21 @@ class SceneCaster:
                                  tfar=float(params.camera.far - params.camera.near))
         return np.asarray(hits.prim_id)
 
+    def shadow(self, params: RenderParameter, pixels: np.ndarray) -> np.ndarray:
+        """Return the directional light's visibility (1 lit, 0 shadowed) at ``pixels`` (row-major).
+
+        The pixels' rays are cast for their surface points, then one shadow ray
+        from each towards the light (:func:`~albedo_model.render.visibility.directional_visibility`).
+        """
+        self._scene(params)
+        o, d = self._rays
+        hits = self._caster.cast(o[pixels], d[pixels],
+                                 tfar=float(params.camera.far - params.camera.near))
+        vertices = self._caster_vertices
+        return directional_visibility(hits, vertices, self.model.triangles,
+                                      params.pose, params.directional_light.direction,
+                                      self._caster)
+
     def cast(self, params: RenderParameter) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(prim_id (H W,) int32, t (H W,) float32)`` of a ray cast at ``params``."""
         p = params
@@ -80,11 +97,13 @@ class SceneCaster:
 PIXEL_BUCKET = 2048
 
 
-def hits_at(prim_id: np.ndarray, pixels: np.ndarray, width: int) -> FixedHits:
+def hits_at(prim_id: np.ndarray, pixels: np.ndarray, width: int,
+            shadow: np.ndarray | None = None) -> FixedHits:
     """Return the :class:`FixedHits` of some pixels (row-major indices) of a ray cast.
 
     The list is padded with masked entries to a multiple of :data:`PIXEL_BUCKET`
-    (their colours are the background and their derivatives zero).
+    (their colours are the background and their derivatives zero). ``shadow``
+    is the directional light's visibility at ``pixels`` (cast shadows), if any.
     """
     pixels = np.asarray(pixels, np.int64)
     n = pixels.size
@@ -94,7 +113,12 @@ def hits_at(prim_id: np.ndarray, pixels: np.ndarray, width: int) -> FixedHits:
     prim = np.asarray(prim_id)[padded]
     valid = np.arange(size) < n
     ys, xs = np.divmod(padded, int(width))
+    vis = None
+    if shadow is not None:
+        vis = np.ones(size, np.float32)
+        vis[:n] = np.asarray(shadow, np.float32)
+        vis = jnp.asarray(vis)
     return FixedHits(padded.astype(np.int32), jnp.asarray(xs, jnp.float32),
                      jnp.asarray(ys, jnp.float32),
                      jnp.asarray(np.where(valid, np.maximum(prim, 0), 0), jnp.int32),
-                     jnp.asarray(valid & (prim >= 0)))
+                     jnp.asarray(valid & (prim >= 0)), vis)

@@ -62,19 +62,15 @@ from albedo_model.render.pixel_work import (
 )
 from albedo_model.render.scene_slots import SceneSlots
 from albedo_model.shading.image_formation import Effects, Shaded, effects_for, pack_shading_params, to_hwc
-from albedo_model.render.visibility import directional_visibility, landmark_pixels
+from albedo_model.render.shadows import state_shadow
+from albedo_model.render.visibility import landmark_pixels
 
 __all__ = ["Renderer", "RenderState", "Rendered", "render"]
-
-
-
 
 
 def _n_pixels(state: RenderState) -> int:
     w, h = state.params.image_size
     return int(w) * int(h)
-
-
 
 
 class Renderer:
@@ -117,6 +113,8 @@ class Renderer:
         self._instances = ModelInstances(model, self.specular)
         self._device_albedo = DeviceAlbedo(self._instances)
         self._capacity: dict[int, int] = {}  # pixel-set capacity per image size
+        #: Rays cast so far: ``primary`` (camera rays) and ``shadow`` (towards the light).
+        self.ray_counts = {"primary": 0, "shadow": 0}
 
     # -- effects ------------------------------------------------------------
     def effects(self, params: RenderParameter) -> Effects:
@@ -124,7 +122,6 @@ class Renderer:
         return effects_for(params, self.specular, shadows=self.shadows, gamma=self.gamma,
                            directional_specular_map=self.directional_specular_map)
 
-    # -- stages ---------------------------------------------------------------
     def _cast(self, params: RenderParameter, caster, versions: BlockVersions) -> RayHits:
         size = params.image_size
         w, h = int(size.width), int(size.height)
@@ -140,6 +137,8 @@ class Renderer:
         # rays outside the mesh's projected bounding box cannot hit: not cast (a face
         # filling a third of an LFW-like image: 20-30 % off the ray cast)
         window = pixel_window(caster.bounds, params.camera, size, params.pose, params.view)
+        y0, y1, x0, x1 = window
+        self.ray_counts["primary"] += max(0, y1 - y0) * max(0, x1 - x0)
         return caster.cast(*self._rays, tfar=tfar, image_shape=(h, w), window=window)
 
     def _hits_cache(self, hits: RayHits, effects: Effects, height: int, stamp: int):
@@ -199,7 +198,7 @@ class Renderer:
             hits.prim_id, hits.bary, False, px_hits, geometry, px_albedo, None, effects,
             self._shading(params), (0, 0), pixels, pixels_dev, versions, stamp,
         )
-        state = state._replace(pixel_light=self._light(state, effects))
+        state = self._with_light(state, effects)
         for cache in (px_hits, geometry, px_albedo, state.pixel_light):
             cache.value  # the start of a chain: every step reuses them
         return state
@@ -274,7 +273,7 @@ class Renderer:
                 stamp))
         if (stale("light", touched) or rebuilt
                 or light_effects(effects) != light_effects(state.effects)):
-            s = s._replace(pixel_light=self._light(s, effects))
+            s = self._with_light(s, effects)
         return s
 
     def accept(self, state: RenderState) -> RenderState:
@@ -294,14 +293,22 @@ class Renderer:
         """True when geometry updates refit the BVH in place (else rebuild)."""
         return self._slots is not None and self._slots.current.refit_supported
 
-    def _light(self, state: RenderState, effects: Effects) -> Deferred:
+    def _with_light(self, state: RenderState, effects: Effects) -> RenderState:
+        """``state`` with its light transport (cast shadows reused while their key holds)."""
+        shadow = self._shadow_cache(state, effects)
+        return state._replace(shadow=shadow, pixel_light=self._light(state, effects, shadow))
+
+    def _light(self, state: RenderState, effects: Effects, shadow=None) -> Deferred:
         """Deferred light transport of ``state`` (its pixel geometry must satisfy ``effects``)."""
-        shadow = self._shadow(state) if effects.shadows else None
-        if shadow is not None and state.pixels is not None:
-            shadow = shadow[state.pixels]
+        if effects.shadows and shadow is None:
+            shadow = self._shadow_cache(state, effects)
         return Deferred(light_stage(light_effects(effects)),
                         {"geometry": state.pixel_geometry, "packed": state.shading,
-                         "shadow": shadow}, effects, state.stamp)
+                         "shadow": None if shadow is None else shadow[1]}, effects, state.stamp)
+
+    def _shadow_cache(self, state: RenderState, effects: Effects):
+        caster = self._slots.candidate if state.geometry_pending else self._slots.current
+        return state_shadow(state, effects, caster, self.model.triangles, self.ray_counts)
 
     def _shading_inputs(self, state: RenderState, effects: Effects | None):
         eff = state.effects if effects is None else effects
@@ -377,12 +384,6 @@ class Renderer:
         if self._views_cache.get("size") != (w, h):
             self._views_cache = {"size": (w, h), "coords": jax.device_put(pixel_coordinates(w, h))}
         return self._views_cache["coords"], packed_camera(p)
-
-    def _shadow(self, state: RenderState) -> np.ndarray:
-        p = state.params
-        caster = self._slots.candidate if state.geometry_pending else self._slots.current
-        return directional_visibility(state.hits, state.shape.reshape(-1, 3), self.model.triangles,
-                                      p.pose, p.directional_light.direction, caster)
 
 
 def render(model: MorphableModel, params: RenderParameter, *, specular: bool = True,

@@ -180,6 +180,11 @@ class RenderState(NamedTuple):
         A stamp of this state alone (new for every :meth:`Renderer.update
         <albedo_model.render.renderer.Renderer.update>`); the per-pixel caches it
         created carry it.
+    shadow : (key, (C,) float32 array) or None
+        The directional light's visibility at the pixel set (cast shadows) and
+        the ``stage_key`` of the ``shadow`` stage it was cast for: an SH light or
+        colour move reuses it, a light-direction move re-casts only these rays.
+        None without cast shadows.
     """
 
     params: RenderParameter
@@ -203,6 +208,7 @@ class RenderState(NamedTuple):
     pixels_dev: object = None
     versions: BlockVersions | None = None
     stamp: int = 0
+    shadow: tuple | None = None
 
     def positions(self, indices: np.ndarray) -> np.ndarray:
         """Where pixels (row-major indices, all in the pixel set) sit in the caches' arrays."""

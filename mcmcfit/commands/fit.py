@@ -53,6 +53,11 @@ def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "
                    "models) or a gamma-encoded sRGB texture (BFM 2017), compared with the "
                    "photograph's encoded values and reported decoded to linear (default: "
                    "read from the model file, else by its layout)")
+    p.add_argument("--effects", choices=("auto", "sh", "sh+directional"),
+                   help="the light of the fit's image model: the SH light alone (sh), plus "
+                   "one sampled directional light with cast shadows (sh+directional), or "
+                   "decided per photograph from how much the directional light improves "
+                   "the fit at the mode (auto, the default; recorded in summary.json)")
     p.add_argument("--seed", type=int, default=0, help="root seed of the fit (default 0)")
     p.add_argument("--config", metavar="F.json",
                    help="fit settings as JSON (a config.json of an earlier fit); "
@@ -85,7 +90,8 @@ def config_from_args(args: argparse.Namespace, **defaults):
                ("time_budget", getattr(args, "time_budget", None)),
                ("noise", getattr(args, "noise", None)),
                ("sampler", getattr(args, "sampler", None)),
-               ("model_colour", getattr(args, "model_colour", None)))
+               ("model_colour", getattr(args, "model_colour", None)),
+               ("effects", getattr(args, "effects", None)))
     changes = {k: v for k, v in options if v is not None}
     if getattr(args, "serial", False):
         changes["parallel"] = False

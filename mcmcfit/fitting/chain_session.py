@@ -40,6 +40,7 @@ from mcmcfit.fitting.adaptation import (
 from mcmcfit.targets.gradient import posterior_gradient
 from mcmcfit.fitting.cache_check import CacheCheck
 from mcmcfit.fitting.landmark_stage_emcee import run_emcee_stage
+from mcmcfit.fitting.effects_phase import EffectPhases
 from mcmcfit.fitting.gaussian_stage import GaussianPhases
 from mcmcfit.fitting.landmark_starts import DEFAULT_STARTS, landmark_stage
 from mcmcfit.fitting.mode import ModeResult
@@ -80,7 +81,7 @@ def use_compilation_cache() -> None:
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
 
 
-class ChainSession(GaussianPhases):
+class ChainSession(EffectPhases, GaussianPhases):
     """One chain: its targets, proposals, state and records.
 
     Parameters

@@ -1,18 +1,17 @@
 """Settings of one fit, as a frozen dataclass saved as JSON beside the results.
 
 This module imports :mod:`albedo_model.errors`, :mod:`mcmcfit.targets.priors` and
-:mod:`mcmcfit.targets.image` (for the likelihood names).
+:mod:`mcmcfit.fitting.config_checks` (the validation).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from dataclasses import dataclass, field
 
 from albedo_model.errors import InputError
-from mcmcfit.targets.image import IMAGE_LIKELIHOODS
+from mcmcfit.fitting.config_checks import check_config
 from mcmcfit.targets.priors import PriorConfig
 
 __all__ = ["GAUSSIAN_WARMUP", "FitConfig"]
@@ -226,6 +225,13 @@ class FitConfig:
         camera's sRGB values, as the reference does, and the render is compared
         with the photograph's encoded values (not linearised); the reported
         albedo is decoded to linear.
+    effects : {"auto", "sh", "sh+directional"}
+        The light the fit's image model has (``--effects``): the SH light alone,
+        or plus one directional light with cast shadows (sampled: direction and
+        RGB strength, Gaussian sampler only). ``"auto"`` decides after the first
+        climb, from how much a directional light improves the fit of the
+        photograph (:mod:`mcmcfit.fitting.effects_choice`); no shadow ray is cast
+        unless it is on.
     prior : PriorConfig
     """
 
@@ -288,69 +294,12 @@ class FitConfig:
     threads: int | None = None
     check_cache: bool = False
     model_colour: str | None = None
+    effects: str = "auto"
     prior: PriorConfig = field(default_factory=PriorConfig)
 
     def __post_init__(self) -> None:
         """Validate every setting; an invalid one raises InputError."""
-        def count(name: str, minimum: int = 0) -> None:
-            v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or v < minimum:
-                raise InputError(f"fit config: {name} must be an integer >= {minimum}, got {v!r}")
-
-        for name in ("steps", "landmark_steps", "n_shape", "n_albedo", "n_expression"):
-            count(name)
-        count("noise_updates")
-        count("widen_at")
-        count("hmc_leapfrog", 1)
-        for name in ("mode_rounds", "mode_steps", "region_erode", "region_band"):
-            count(name)
-        if self.warmup_steps is not None:
-            count("warmup_steps")
-        for name in ("chains", "thin", "bins", "solver_points", "albedo_points", "adapt_window",
-                     "check_every"):
-            count(name, 1)
-        count("emcee_walkers", 2 * 8 + 2)
-        for name in ("sigma_px", "sigma_lm", "solver_sigma", "mala_step", "face_box_scale_sigma",
-                     "face_box_centre_sigma"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InputError(f"fit config: {name} must be > 0, got {v!r}")
-        for name in ("stage1_shape_weight", "specular_weight", "albedo_weight",
-                     "light_conditional_weight", "mala_weight", "pcn_weight", "block_weight", "hmc_weight",
-                     "conditional_weight"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise InputError(f"fit config: {name} must be >= 0, got {v!r}")
-        choices = {"likelihood": IMAGE_LIKELIHOODS, "stage1": ("mh", "emcee"),
-                   "background": ("smoothed", "histogram"),
-                   "init_pose": ("lsq", "similarity"), "init_light": ("solve", "frontal"),
-                   "noise": ("estimated", "fixed"), "sampler": ("gaussian", "reference", "random-walk"),
-                   "hmc_triangles": ("cast", "mode")}
-        for name, allowed in choices.items():
-            if getattr(self, name) not in allowed:
-                raise InputError(f"fit config: {name} must be one of {allowed}, "
-                                 f"got {getattr(self, name)!r}")
-        if not 0.0 < self.lm_hidden_probability <= 1.0:
-            raise InputError("fit config: lm_hidden_probability must be in (0, 1], "
-                             f"got {self.lm_hidden_probability}")
-        if not 0.0 < self.trim_fraction <= 1.0:
-            raise InputError(f"fit config: trim_fraction must be in (0, 1], got {self.trim_fraction}")
-        if not (isinstance(self.temperature, (int, float)) and math.isfinite(self.temperature)
-                and self.temperature >= 1.0):
-            raise InputError(f"fit config: temperature must be >= 1, got {self.temperature!r}")
-        if not 0.0 <= self.burn_fraction < 1.0:
-            raise InputError(f"fit config: burn_fraction must be in [0, 1), got {self.burn_fraction}")
-        if self.block_size is not None and self.block_size < 1:
-            raise InputError(f"fit config: block_size must be >= 1 or None, got {self.block_size}")
-        if self.time_budget is not None and not (
-                isinstance(self.time_budget, (int, float)) and self.time_budget > 0):
-            raise InputError(f"fit config: time_budget must be > 0 seconds or None, "
-                             f"got {self.time_budget!r}")
-        if self.model_colour not in (None, "linear", "srgb"):
-            raise InputError("fit config: model_colour must be 'linear', 'srgb' or None "
-                             f"(read from the model), got {self.model_colour!r}")
-        if self.threads not in (None, 1, 2):
-            raise InputError(f"fit config: threads must be 1, 2 or None, got {self.threads}")
+        check_config(self)
 
     @property
     def warmup(self) -> int:

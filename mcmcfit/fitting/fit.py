@@ -35,8 +35,10 @@ from threadpoolctl import threadpool_limits
 
 from albedo_model.errors import InputError
 from albedo_model.model import MorphableModel
+from albedo_model.params import DirectionalLight
 from mcmcfit.fitting.chain_pool import chain_pool
 from mcmcfit.fitting.config import FitConfig
+from mcmcfit.fitting.effects_choice import DIRECTIONAL_SHININESS
 from mcmcfit.fitting.initialisation import (
     check_fit_inputs, initial_params, pose_from_face_box, pose_from_landmarks,
 )
@@ -129,8 +131,9 @@ def _fit(image: np.ndarray, landmarks, model: MorphableModel, *, config: FitConf
     geometry = LandmarkGeometry(model, threads=1)
     params0 = initial_params(model, w, h, n_shape=cfg.n_shape, n_albedo=cfg.n_albedo,
                              n_expression=cfg.n_expression, model_uri=model_uri)
-    problem = FitProblem(img, landmarks, face_box, landmark_sigma, model, cfg, params0,
-                         ParamLayout.for_params(params0))
+    params0 = params0._replace(directional_light=DirectionalLight(shininess=DIRECTIONAL_SHININESS))
+    layout0 = dataclasses.replace(ParamLayout.for_params(params0), directional=cfg.effects != "sh")
+    problem = FitProblem(img, landmarks, face_box, landmark_sigma, model, cfg, params0, layout0)
     factor = landmark_factor(problem, geometry)
     used: tuple[str, ...] = ()
     unknown: tuple[str, ...] = ()
@@ -282,6 +285,8 @@ def _prepare_gaussian(pool, cfg: FitConfig, stopping: dict) -> NoiseModel:
     t0 = time.perf_counter()
     climbs = pool.call("climb")
     best = int(np.argmax([c["score"] for c in climbs]))
+    stopping["effects"] = pool.call("choose_effects")[best]
+    pool.call("set_effects", stopping["effects"]["decision"])
     rounds = []
     noise = None
     for _ in range(TARGET_ROUNDS):
@@ -313,6 +318,10 @@ def assemble_result(cfg: FitConfig, seed: int, layout, template,
                     setup_s: float, total_s: float, noise, stopping: dict,
                     regions: RegionAlbedo | None = None) -> FitResult:
     """Collect the chains' records into a :class:`FitResult` (a single or a joint fit's layout)."""
+    stopping.setdefault("effects", {"decision": "sh", "reason": "no climb to the mode"})
+    if getattr(layout, "directional", False):
+        chains, layout, template = light_effects_of(chains, layout, template,
+                                                    stopping["effects"]["decision"])
     rec1 = [c.stage1 for c in chains if c.stage1 is not None]
     rec2 = [c.stage2 for c in chains if c.stage2 is not None]
     last = rec2 or rec1
@@ -347,6 +356,31 @@ def assemble_result(cfg: FitConfig, seed: int, layout, template,
                      convergence(rec2, burn_fraction=cfg.burn_fraction, model=regions)
                      if rec2 else {},
                      noise.to_dict(), stopping)
+
+
+def light_effects_of(chains: list[ChainResult], layout, template, decision: str):
+    """Return chains, layout and template fitting the effects chosen (``stopping["effects"]``).
+
+    The chains record a directional light's columns from the start (zeros
+    while it is off); without one they are dropped, with one the template
+    carries the light of the last kept draw (so that ``ParamLayout.for_params``
+    of the template is the layout again, as ``chain.h5`` reads it).
+    """
+    if decision != "sh+directional":
+        plain = dataclasses.replace(layout, directional=False)
+        out = []
+        for c in chains:
+            parts = {name: dataclasses.replace(getattr(c, name), layout=plain,
+                                               samples=getattr(c, name).samples[:, :plain.size])
+                     for name in ("stage1", "warmup", "stage2") if getattr(c, name) is not None}
+            out.append(dataclasses.replace(c, **parts))
+        return out, plain, template
+    last = next((c.stage2.samples[-1] for c in chains
+                 if c.stage2 is not None and c.stage2.samples.shape[0]), None)
+    if last is not None:
+        template = template._replace(
+            directional_light=layout.from_vector(last, template).directional_light)
+    return chains, layout, template
 
 
 def _sum_seconds(records: list[ChainRecord]) -> dict[str, float]:

@@ -251,6 +251,14 @@ class JointChainSession(DrawPhases):
         self.state = init(self.state.params, self.target, image=True)
         return {"score": float(score), "trace": traces}
 
+    def choose_effects(self) -> dict:
+        """Return the decision "sh": a joint fit has the SH light alone (no directional light)."""
+        return {"decision": "sh", "reason": "a joint fit models the SH light only"}
+
+    def set_effects(self, decision: str) -> bool:
+        """Keep the SH light alone (see :meth:`choose_effects`); return False."""
+        return False
+
     def mode_params(self) -> JointParameter:
         """Return the mode the last climb reached."""
         return self.mode.params

@@ -34,7 +34,7 @@ from mcmcfit.targets.landmarks import FaceBoxTarget, LandmarkGeometry, LandmarkT
 from mcmcfit.targets.noise_model import NoiseModel, fixed_noise
 from mcmcfit.targets.priors import LogPrior
 
-__all__ = ["FitProblem", "Posterior", "build_posterior", "comparison_colour", "landmark_factor",
+__all__ = ["FitProblem", "Posterior", "build_posterior", "fit_renderer", "comparison_colour", "landmark_factor",
            "provisional_noise"]
 
 
@@ -123,6 +123,17 @@ class Posterior:
         return self.noise.sigma * math.sqrt(self.noise.temperature)
 
 
+def fit_renderer(model, cfg, *, threads: int | None = None) -> Renderer:
+    """Return a renderer with a fit's image model: cast shadows unless ``effects="sh"``.
+
+    The directional light's Blinn-Phong term is scaled by the specular albedo,
+    so that the render stays linear in the albedo coefficients. Shadows are
+    cast only while the scene's directional light is on.
+    """
+    return Renderer(model, specular=cfg.specular, shadows=cfg.effects != "sh",
+                    directional_specular_map=True, threads=threads)
+
+
 def build_posterior(problem: FitProblem, noise: NoiseModel, *, threads: int | None = None,
                     renderer: Renderer | None = None,
                     geometry: LandmarkGeometry | None = None,
@@ -146,8 +157,8 @@ def build_posterior(problem: FitProblem, noise: NoiseModel, *, threads: int | No
     """
     cfg = problem.config
     if renderer is None:
-        renderer = Renderer(problem.model, specular=cfg.specular,
-                            threads=cfg.threads if threads is None else threads)
+        renderer = fit_renderer(problem.model, cfg,
+                                threads=cfg.threads if threads is None else threads)
     if geometry is None:
         geometry = LandmarkGeometry(problem.model, threads=1)
     smooth = noise.sigma if cfg.background == "smoothed" else None

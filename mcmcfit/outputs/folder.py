@@ -45,7 +45,7 @@ from albedo_model.io.colour_space import model_colour_space
 from albedo_model.io.image_io import write_png
 from albedo_model.io.mesh_export import write_mesh
 from albedo_model.io.rps import write_rps
-from albedo_model.render.renderer import Renderer
+from mcmcfit.fitting.problem import fit_renderer
 from mcmcfit.fitting.result import FitResult
 from mcmcfit.targets.landmarks import target_landmarks
 from mcmcfit.outputs.albedo_decoding import model_colour_record
@@ -118,7 +118,7 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     best = result.best.params
     mean = result.mean_params if result.mean_params is not None else best
     # the fit's renderer settings (linear output), so that its compiled stages are reused
-    renderer = Renderer(model, specular=cfg.specular, threads=cfg.threads)
+    renderer = fit_renderer(model, cfg, threads=cfg.threads)
     state = renderer.init_state(best)
     rendered = renderer.image(state)
     space = model_colour_space(model, cfg.model_colour)

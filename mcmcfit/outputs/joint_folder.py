@@ -50,6 +50,7 @@ from albedo_model.io.image_io import write_png
 from albedo_model.io.mesh_export import write_mesh
 from albedo_model.io.rps import write_rps
 from albedo_model.render.renderer import Renderer
+from mcmcfit.fitting.problem import fit_renderer
 from mcmcfit.fitting.result import FitResult
 from mcmcfit.outputs.albedo_decoding import model_colour_record
 from mcmcfit.outputs.albedo_summary import (
@@ -128,7 +129,7 @@ def write_joint_outputs(folder: str | os.PathLike, result: FitResult, loaded,
     best = result.best.params
     mean = result.mean_params if result.mean_params is not None else best
     space = model_colour_space(model, cfg.model_colour)
-    renderer = Renderer(model, specular=cfg.specular, threads=cfg.threads)
+    renderer = fit_renderer(model, cfg, threads=cfg.threads)
     seen, per_image = [], []
     for k, image in enumerate(images):
         vis, err = _image_outputs(out, k, renderer, best.images[k], mean.images[k], image,

@@ -7,7 +7,7 @@ coefficient (:func:`albedo_model.render.light_basis.light_basis`) times the
 pixel's diffuse and specular albedo, reduced to the normal equations with the
 colour transform (:func:`proposals.light_conditional.light_system`). It
 depends on the blocks of ``STAGE_DEPS["light_system"]`` only (never on the
-light), on whose version stamps it is kept.
+light; a directional light enters as an offset), on whose version stamps it is kept.
 
 This module imports :mod:`albedo_model` (errors, render, shading.effects),
 :mod:`proposals` (light_conditional, base) and :mod:`mcmcfit.proposal_data.face_pixels`.
@@ -77,4 +77,23 @@ class RenderLightSystem:
             off = offset_count(rs.effects) * np.asarray(p.color_transform.offset, np.float64)
         else:
             mat, off = np.eye(3), np.zeros(3)
-        return light_system(g, mat, self._target[face] - off, key)
+        target = self._target[face] - off
+        if rs.effects.directional:  # its light is an offset: the state's transport minus the SH part
+            target = target - _directional_part(rs, at, rho, albedo, b, s) @ mat.T
+        return light_system(g, mat, target, key)
+
+
+def _directional_part(rs: RenderState, at, rho, albedo, b, s) -> np.ndarray:
+    """(N, 3) the directional light's share of the render (before the colour transform)."""
+    light = rs.pixel_light.value
+    L = np.asarray(rs.params.environment_map.coefficients, np.float64)
+    out = np.empty(rho.shape)
+    for c in range(3):
+        d = np.asarray(light.diffuse[c], np.float64)[at] - b[at] @ L[:, c]
+        out[:, c] = rho[:, c] * d
+        spec_light = light.specular
+        if spec_light is not None and albedo.specular is not None:
+            sh = s[at] @ L[:, c] if s is not None else 0.0
+            out[:, c] += (np.asarray(albedo.specular[c], np.float64)[at]
+                          * (np.asarray(spec_light[c], np.float64)[at] - sh))
+    return out

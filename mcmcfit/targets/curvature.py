@@ -43,7 +43,7 @@ from albedo_model.render.pixel_cast import SceneCaster, hits_at
 from albedo_model.scene_vector import SceneLayout
 from mcmcfit.targets.face import FaceTarget
 from mcmcfit.targets.landmarks import LandmarkTarget
-from mcmcfit.targets.priors import PriorConfig
+from mcmcfit.targets.priors import PriorConfig, directional_prior
 
 __all__ = ["Curvature", "PosteriorCurvature", "SceneCaster", "coordinate_gradient", "hits_at",
            "prior_curvature"]
@@ -113,6 +113,9 @@ def prior_curvature(params: RenderParameter, layout: SceneLayout,
     normal(sl["offset"], 0.0, c.offset_sigma)
     e = sl["specular_exponent"].start
     g[e], h[e] = _lognormal_terms(x[e], c.specular_median, c.specular_log_sigma)
+    if layout.directional:
+        idx = np.r_[sl["light_angles"], sl["light_intensity"]]
+        _, g[idx], h[idx] = directional_prior(x[sl["light_angles"]], x[sl["light_intensity"]], c)
     return g, np.diag(h)
 
 
@@ -178,7 +181,8 @@ class PosteriorCurvature:
         self.target, self.layout = target, layout
         r = target.renderer
         self.jacobian = PixelJacobian(r.model, layout, specular=r.specular,
-                                      background=r.background)
+                                      background=r.background, shadows=r.shadows,
+                                      directional_specular_map=r.directional_specular_map)
         self.caster = caster or SceneCaster(r.model)
         self._region = np.flatnonzero(np.asarray(lik.region, bool).reshape(-1))
         self._target = lik.target.linear.reshape(-1, 3)
@@ -203,12 +207,18 @@ class PosteriorCurvature:
         if pix.size == 0:
             return Curvature(np.zeros(self.layout.size),
                              np.zeros((self.layout.size, self.layout.size)), 0)
-        colours, jac = self.jacobian.jacobian(p, hits_at(prim, pix, w))
+        colours, jac = self.jacobian.jacobian(p, hits_at(prim, pix, w, self._shadow(p, pix)))
         n = pix.size
         r = (np.asarray(colours[:, :n], np.float64).T - self._target[pix]).reshape(-1)  # (3C,)
         j = np.asarray(jac[:, :n], np.float64).transpose(1, 0, 2).reshape(-1, self.layout.size)
         scale = weight / (lik.sigma * lik.sigma * lik.temperature)
         return Curvature(-scale * (j.T @ r), scale * (j.T @ j), int(pix.size))
+
+    def _shadow(self, params: RenderParameter, pixels: np.ndarray) -> np.ndarray | None:
+        """Return the directional light's visibility at ``pixels`` (None without cast shadows)."""
+        if not (self.jacobian.shadows and params.directional_light.enabled):
+            return None
+        return self.caster.shadow(params, pixels)
 
     def _landmark_arrays(self, factor: LandmarkTarget, params: RenderParameter):
         if self._landmark_inputs is None:
@@ -263,7 +273,7 @@ class PosteriorCurvature:
         pix = self._region
         prim = np.full(int(p.image_size.width) * int(p.image_size.height), -1, np.int64)
         prim[pix] = self.caster.cast_pixels(p, pix) if triangles is None else triangles
-        hits = hits_at(prim, pix, w)
+        hits = hits_at(prim, pix, w, self._shadow(p, pix))
         n = pix.size
         c = hits.mask.shape[0]
         if self._region_target is None or self._region_target.shape[1] != c:

@@ -17,10 +17,15 @@ SH light                each coefficient ~ N(frontal, sigma_band^2), sigma 1 / 0
 colour transform        gain_c ~ log-normal(1, 0.5); contrast ~ N(1, 0.3);
                         offset_c ~ N(0, 0.1)
 specular exponent       e ~ log-normal(median 20, log-sd 0.5)
+directional light       (only when it is on) strength_c ~ log-normal(median 0.5, log-sd 1);
+                        direction ~ von Mises-Fisher(towards the camera, kappa 2) on the
+                        sphere, a density in (azimuth, elevation) with its cos(elevation)
 ======================  ================================================================
 
-``pose.scaling``, the view, near/far, the sensor and the directional light are
-never sampled and have no factor.
+``pose.scaling``, the view, near/far and the sensor are never sampled and have
+no factor. The directional light is sampled as an azimuth, an elevation and an
+RGB strength (:meth:`~albedo_model.params.DirectionalLight.angles`), and its
+factor is a density of those: the walks and Gaussian moves work in them.
 
 This module imports only :mod:`albedo_model.params` and numpy.
 """
@@ -34,7 +39,8 @@ import numpy as np
 
 from albedo_model.params import RenderParameter, SHLight
 
-__all__ = ["LogPrior", "PriorConfig", "lognormal_logpdf", "normal_logpdf", "std_normal_logpdf"]
+__all__ = ["LogPrior", "PriorConfig", "directional_prior", "lognormal_logpdf", "normal_logpdf",
+           "std_normal_logpdf"]
 
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -78,6 +84,38 @@ class PriorConfig:
     offset_sigma: float = 0.1
     specular_median: float = 20.0
     specular_log_sigma: float = 0.5
+    directional_median: float = 0.5
+    directional_log_sigma: float = 1.0
+    direction_kappa: float = 2.0
+
+
+def directional_prior(angles, intensity, config: PriorConfig) -> tuple[float, np.ndarray, np.ndarray]:
+    """Log density of a directional light in ``(azimuth, elevation, strength r, g, b)``.
+
+    Returns the value, its gradient (5,) and the diagonal of its negative
+    Hessian (5,), floored at 1e-6 (a precision for Gauss-Newton steps). The
+    direction's factor is ``kappa/(4 pi sinh kappa) exp(kappa d_z) cos(el)`` with
+    ``d_z = cos(az) cos(el)``; each strength is log-normal.
+    """
+    az, el = (float(a) for a in angles)
+    k = float(config.direction_kappa)
+    ca, sa, ce, se = math.cos(az), math.sin(az), math.cos(el), math.sin(el)
+    if ce <= 0.0:
+        return -math.inf, np.zeros(5), np.full(5, 1e-6)
+    log_c = math.log(k / (4.0 * math.pi * math.sinh(k))) if k > 0 else -math.log(4.0 * math.pi)
+    value = log_c + k * ca * ce + math.log(ce)
+    grad = np.zeros(5)
+    hess = np.zeros(5)
+    grad[0], grad[1] = -k * sa * ce, -k * ca * se - se / ce
+    hess[0], hess[1] = k * ca * ce, k * ca * ce + 1.0 / (ce * ce)
+    m, s2 = config.directional_median, config.directional_log_sigma ** 2
+    for i, x in enumerate(np.asarray(intensity, np.float64).reshape(3)):
+        value += lognormal_logpdf(float(x), m, config.directional_log_sigma)
+        if x > 0:
+            z = math.log(x) - math.log(m)
+            grad[2 + i] = -z / (s2 * x) - 1.0 / x
+            hess[2 + i] = (1.0 - z - s2) / (s2 * x * x)
+    return value, grad, np.maximum(hess, 1e-6)
 
 
 class LogPrior:
@@ -138,6 +176,9 @@ class LogPrior:
             "specular_exponent": lognormal_logpdf(p.specular_exponent, c.specular_median,
                                                   c.specular_log_sigma),
         }
+        dl = p.directional_light
+        if dl.enabled:
+            out["directional_light"] = directional_prior(dl.angles(), dl.diffuse, c)[0]
         return out
 
     def __call__(self, params: RenderParameter) -> float:

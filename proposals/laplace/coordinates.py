@@ -13,8 +13,9 @@ maps a vector ``u`` to scene parameters through a
   centre is a translation of the head up to a sub-degree perspective turn), so
   sampling them adds directions that only their priors bound, along curved
   ridges no Gaussian follows;
-* the focal length, the distance ``d = view_z - t_z`` and the specular
-  exponent are positive and carry log-normal priors: their coordinate is the
+* the focal length, the distance ``d = view_z - t_z``, the specular
+  exponent and the directional light's strengths are positive and carry
+  log-normal priors: their coordinate is the
   logarithm (``x = exp(u)``, ``t_z = view_z - exp(u)``), in which the priors are
   Gaussian and the focal-length/distance ridge (the image size ``f / d``) is a
   straight line;
@@ -53,14 +54,15 @@ __all__ = ["HELD", "LOG_SCALE", "SamplingCoordinates", "entry_blocks"]
 #: Scene entries held fixed by the Gaussian moves (see the module notes).
 HELD = ("gain", "principal_point")
 #: Scene entries whose coordinate is a logarithm.
-LOG_SCALE = ("focal_length", "distance", "specular_exponent")
+LOG_SCALE = ("focal_length", "distance", "specular_exponent", "light_intensity")
 
 _BLOCK_OF = {"shape": Block.SHAPE, "expression": Block.EXPRESSION, "angles": Block.POSE,
              "translation": Block.POSE, "focal_length": Block.CAMERA,
              "principal_point": Block.CAMERA, "light": Block.LIGHT,
              "gain": Block.COLOR_TRANSFORM, "contrast": Block.COLOR_TRANSFORM,
              "offset": Block.COLOR_TRANSFORM, "specular_exponent": Block.SPECULAR_EXPONENT,
-             "albedo": Block.ALBEDO}
+             "albedo": Block.ALBEDO, "light_angles": Block.DIRECTIONAL,
+             "light_intensity": Block.DIRECTIONAL}
 
 
 def entry_blocks() -> dict[str, Block]:
@@ -121,8 +123,8 @@ class SamplingCoordinates:
                 is_log = (entry in LOG_SCALE) or (i == tz)
                 log.append(is_log)
                 label = "distance" if i == tz else entry
-                names.append(f"log_{label}" if is_log else
-                             (entry if sl.stop - sl.start == 1 else f"{entry}.{k}"))
+                name = f"log_{label}" if is_log else entry
+                names.append(name if sl.stop - sl.start == 1 or i == tz else f"{name}.{k}")
                 touches |= _BLOCK_OF[entry]
         if not keep:
             raise InputError("no scene entry is sampled")

@@ -80,7 +80,8 @@ GAUSSIAN_BLOCKS = {
     "geometry-wide": ("shape", "expression", "angles", "translation", "log_distance",
                       "log_focal_length", "principal_point"),
     "gaussian-albedo": ("albedo",),
-    "gaussian-shading": ("light", "gain", "contrast", "offset", "log_specular_exponent"),
+    "gaussian-shading": ("light", "gain", "contrast", "offset", "log_specular_exponent",
+                         "log_light_intensity"),
 }
 
 

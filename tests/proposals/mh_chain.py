@@ -94,9 +94,10 @@ def changed_blocks(a: RenderParameter, b: RenderParameter) -> Block:
                      (Block.ALBEDO, "albedo")):
         if not np.array_equal(getattr(a.momo, fld), getattr(b.momo, fld)):
             out |= blk
-    if (not np.array_equal(a.environment_map.coefficients, b.environment_map.coefficients)
-            or a.directional_light != b.directional_light):
+    if not np.array_equal(a.environment_map.coefficients, b.environment_map.coefficients):
         out |= Block.LIGHT
+    if a.directional_light != b.directional_light:
+        out |= Block.DIRECTIONAL
     if a.color_transform != b.color_transform:
         out |= Block.COLOR_TRANSFORM
     if a.specular_exponent != b.specular_exponent:

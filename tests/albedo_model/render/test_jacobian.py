@@ -12,7 +12,7 @@ import pytest
 from face_factory import scene, small_face_model
 
 from albedo_model.errors import InputError
-from albedo_model.params import ColorTransform, MoMoCoefficients, SHLight
+from albedo_model.params import ColorTransform, DirectionalLight, MoMoCoefficients, SHLight
 from albedo_model.render.differentiable import fixed_hits
 from albedo_model.render.jacobian import PixelJacobian
 from albedo_model.render.renderer import Renderer
@@ -21,7 +21,7 @@ from albedo_model.scene_vector import ENTRIES, SceneLayout
 SIZE = 56
 #: Central-difference step of each entry (its scale in a fit).
 STEPS = {"angles": 1e-3, "translation": 0.05, "focal_length": 1e-3, "principal_point": 1e-4,
-         "specular_exponent": 0.1}
+         "specular_exponent": 0.1, "light_angles": 1e-3}
 
 
 @pytest.fixture(scope="module")
@@ -77,11 +77,12 @@ def _jacobian(model, seed):
     return p, hits, lay, pj, *pj.jacobian(p, hits)
 
 
-def test_every_column_matches_central_differences(model):
-    p, hits, lay, pj, _, jac = _jacobian(model, 1)
+def _check_columns(pj, lay, p, hits, jac, names) -> None:
+    """Assert that the Jacobian's columns of the entries ``names`` match central differences."""
     m = np.asarray(hits.mask)
     x = lay.vector(p)
-    for name, sl in lay.slices().items():
+    for name in names:
+        sl = lay.slices()[name]
         h = STEPS.get(name, 1e-2)
         for i in range(sl.start, sl.stop):
             up, down = x.copy(), x.copy()
@@ -95,8 +96,13 @@ def test_every_column_matches_central_differences(model):
             assert np.quantile(err, 0.99) < 0.01 * scale + 1e-4, (name, i)
 
 
+def test_every_column_matches_central_differences(model):
+    p, hits, lay, pj, _, jac = _jacobian(model, 1)
+    _check_columns(pj, lay, p, hits, jac, lay.slices())
+
+
 def test_reverse_mode_gradient_is_the_jacobian_transpose(model):
-    p, hits, lay, pj, colours, jac = _jacobian(model, 2)
+    p, hits, _, pj, colours, jac = _jacobian(model, 2)
     rng = np.random.default_rng(0)
     target = (colours + rng.normal(0, 0.02, colours.shape)).astype(np.float32)
     weight = np.where(np.asarray(hits.mask), 400.0, 0.0).astype(np.float32)
@@ -110,3 +116,39 @@ def test_reverse_mode_gradient_is_the_jacobian_transpose(model):
 def test_more_coefficients_than_the_model_is_an_error(model):
     with pytest.raises(InputError):
         PixelJacobian(model, SceneLayout(10, 2, 9, 3))
+
+
+def _directional(model, seed: int):
+    """A scene with a side light (on), its renderer state with cast shadows and its fixed hits."""
+    p = _params(seed)._replace(directional_light=DirectionalLight.from_angles(
+        0.9, 0.3, (0.7, 0.6, 0.5), shininess=20.0))
+    r = Renderer(model, specular=True, shadows=True, directional_specular_map=True,
+                 threads=1)
+    state = r.init_state(p)
+    hits, _ = fixed_hits(state.prim_id, SIZE, SIZE)
+    shadow = state.full(state.shadow[1], fill=1.0)[hits.pixels]
+    return p, r, state, hits._replace(shadow=shadow)
+
+
+def test_directional_light_layout_colours_and_every_column(model):
+    """A directional light with cast shadows: its five entries, the renderer's colours, every column.
+
+    The shadow is the renderer's (held fixed); the light's azimuth, elevation
+    and strengths are differentiated like the other entries (central differences).
+    """
+    p, r, state, hits = _directional(model, 3)
+    assert 0.02 < 1.0 - float(np.mean(np.asarray(state.shadow[1])[np.asarray(
+        state.pixel_hits.mask)])) < 0.6  # some pixels are in cast shadow
+    lay = SceneLayout.for_params(p)
+    assert lay.directional and lay.sizes()["light_angles"] == 2
+    x = lay.vector(p)
+    np.testing.assert_allclose(lay.vector(lay.with_vector(p, x)), x, atol=1e-9)
+    pj = PixelJacobian(model, lay, shadows=True, directional_specular_map=True)
+    m = np.asarray(hits.mask)
+    image = r.image(state).image.reshape(-1, 3)
+    colours, jac = pj.jacobian(p, hits)
+    np.testing.assert_allclose(colours[:, m].T, image[hits.pixels[m]], atol=5e-5)
+    _check_columns(pj, lay, p, hits, jac, ("light_angles", "light_intensity", "angles", "shape"))
+    outside = x.copy()
+    outside[lay.slices()["light_angles"].start + 1] = 1.7  # beyond the pole: off the chart
+    assert np.isnan(lay.with_vector(p, outside).directional_light.diffuse[0])

@@ -152,7 +152,7 @@ def test_long_chain_of_block_updates_matches_full_render():
 
 
 def test_light_change_that_switches_effects_on():
-    """A LIGHT step adding a directional light needs view directions the cache lacked."""
+    """A DIRECTIONAL step adding a directional light needs view directions the cache lacked."""
     from albedo_model.params import DirectionalLight
     model = bumpy_model()
     renderer = Renderer(model, specular=False)
@@ -160,7 +160,7 @@ def test_light_change_that_switches_effects_on():
     assert state.pixel_geometry.view is None
     lit = state.params._replace(directional_light=DirectionalLight(
         (0.1,) * 3, (0.6,) * 3, (0.3, 0.4, 1.0), (0.3,) * 3, 15.0))
-    cand = renderer.update(state, lit, Block.LIGHT)
+    cand = renderer.update(state, lit, Block.DIRECTIONAL)
     assert cand.effects.directional and cand.pixel_geometry.view is not None
     np.testing.assert_allclose(renderer.image(cand).image,
                                Renderer(model, specular=False).render(lit).image, atol=2e-5)

@@ -105,3 +105,47 @@ def test_total_is_the_sum_of_the_factors_and_never_nan():
     assert PRIOR(bad) == -math.inf
     behind = BASE._replace(pose=BASE.pose._replace(translation=(0.0, 0.0, 10.0)))
     assert PRIOR(behind) == -math.inf
+
+
+def test_directional_light_factor_integrates_to_one_over_its_chart():
+    """The directional light's direction factor is a density in (azimuth, elevation): 2-D quadrature.
+
+    With the strengths held, the factor minus their log-normal densities must
+    integrate to 1 over ``|az| < pi, |el| < pi/2`` (the sphere, with cos el).
+    """
+    from albedo_model.params import DirectionalLight
+    from mcmcfit.targets.priors import directional_prior, lognormal_logpdf
+
+    c = PriorConfig()
+    az = np.linspace(-math.pi, math.pi, 721)
+    el = np.linspace(-math.pi / 2 + 1e-9, math.pi / 2 - 1e-9, 361)
+    strength = (0.4, 0.5, 0.6)
+    rest = sum(lognormal_logpdf(s, c.directional_median, c.directional_log_sigma) for s in strength)
+    dens = np.array([[math.exp(directional_prior((a, e), strength, c)[0] - rest) for e in el]
+                     for a in az])
+    total = np.trapezoid(np.trapezoid(dens, el, axis=1), az)
+    assert total == pytest.approx(1.0, abs=1e-3)
+    light = DirectionalLight.from_angles(0.3, 0.2, strength)
+    assert PRIOR.terms(BASE._replace(directional_light=light))["directional_light"] == pytest.approx(
+        directional_prior((0.3, 0.2), strength, c)[0])
+    assert "directional_light" not in PRIOR.terms(BASE)  # off: no factor
+
+
+def test_directional_light_prior_gradient_and_precision_match_differences():
+    """The gradient and diagonal precision the climbs read are the log density's derivatives."""
+    from mcmcfit.targets.priors import directional_prior
+
+    c = PriorConfig()
+    x0 = np.array([0.4, 0.25, 0.3, 0.5, 0.8])
+
+    def f(x):
+        return directional_prior(x[:2], x[2:], c)[0]
+
+    _, grad, hess = directional_prior(x0[:2], x0[2:], c)
+    for i in range(5):
+        h = 1e-5
+        e = np.zeros(5)
+        e[i] = h
+        assert grad[i] == pytest.approx((f(x0 + e) - f(x0 - e)) / (2 * h), rel=1e-5, abs=1e-7)
+        second = (f(x0 + e) - 2 * f(x0) + f(x0 - e)) / (h * h)
+        assert hess[i] == pytest.approx(max(-second, 1e-6), rel=1e-3, abs=1e-4)
