@@ -137,7 +137,7 @@ class Renderer:
         # rays outside the mesh's projected bounding box cannot hit: not cast (a face
         # filling a third of an LFW-like image: 20-30 % off the ray cast)
         window = pixel_window(caster.bounds, params.camera, size, params.pose, params.view)
-        y0, y1, x0, x1 = window
+        y0, y1, x0, x1 = window if window is not None else (0, h, 0, w)
         self.ray_counts["primary"] += max(0, y1 - y0) * max(0, x1 - x0)
         return caster.cast(*self._rays, tfar=tfar, image_shape=(h, w), window=window)
 

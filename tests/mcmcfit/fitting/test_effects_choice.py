@@ -3,8 +3,8 @@
 Ground truth: renders of a small face model at known geometry and albedo, lit
 by a side light (Lambert + Blinn-Phong, cast shadows) over a weak SH light, or
 by an SH light alone, with pixel noise. The evidence fits the light at the
-true geometry and albedo, so it must find the side light's direction and cast
-no shadow ray.
+true geometry and albedo (which it re-solves with the light), so it must find
+the side light's direction.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from face_factory import scene, small_face_model
 
 from albedo_model.params import DirectionalLight, MoMoCoefficients, SHLight
 from albedo_model.render.renderer import Renderer
-from mcmcfit.fitting.effects_choice import directional_evidence, with_directional
+from mcmcfit.fitting.effects_choice import (REFINED, SCREEN_RATIO, directional_evidence,
+                                             with_directional)
 
 SIZE = 96
 SIGMA = 0.01
@@ -49,7 +50,9 @@ def test_a_side_light_is_found_and_switched_on(model, seed):
     assert ev["on"] and ev["gain"] > 3 * ev["threshold"]
     assert abs(ev["azimuth_deg"] - math.degrees(light.angles()[0])) <= 15.0
     assert abs(ev["elevation_deg"] - 20.0) <= 15.0
-    assert r.ray_counts["shadow"] == 0  # deciding casts no shadow ray
+    # deciding casts the cast shadows of a few candidate directions, nothing more
+    assert 0 < r.ray_counts["shadow"] <= REFINED * SIZE * SIZE
+    assert ev["first_pass_ratio"] >= SCREEN_RATIO
     start = with_directional(truth, ev).directional_light
     assert start.enabled and np.all(np.asarray(start.diffuse) > 0.3)
 
@@ -63,4 +66,4 @@ def test_sh_light_alone_stays_sh(model, seed):
     image = r.render(truth).image + np.random.default_rng(seed).normal(0, SIGMA, image.shape)
     ev = directional_evidence(r, image, truth, np.ones(SIZE * SIZE, bool), SIGMA, 1.0)
     assert not ev["on"], ev
-    assert r.ray_counts["shadow"] == 0
+    assert r.ray_counts["shadow"] <= REFINED * SIZE * SIZE
