@@ -142,6 +142,7 @@ def directional_evidence(renderer: Renderer, target_linear: np.ndarray, params: 
     if not valid.any():
         return out
     scale = sigma * sigma * max(1.0, temperature)
+    threshold = 2.5 * math.log(max(face.size / max(1.0, temperature), 2.0)) + MARGIN
     ranked = np.argsort(np.where(valid, -reduction, np.inf))[:min(REFINED, int(valid.sum()))]
     first = int(ranked[0])
     ambient = float(np.median(rho * (b @ np.asarray(p.environment_map.coefficients)), axis=0).mean()
@@ -149,7 +150,7 @@ def directional_evidence(renderer: Renderer, target_linear: np.ndarray, params: 
     out.update(first_pass_gain=float(reduction[first] / (2.0 * scale)),
                first_pass_ratio=float(np.mean(strength[:, first]) / max(ambient, 1e-6)))
     if out["first_pass_ratio"] < SCREEN_RATIO:
-        out["threshold"] = 2.5 * math.log(max(face.size / max(1.0, temperature), 2.0)) + MARGIN
+        out["threshold"] = float(threshold)
         return out  # too weak to be worth a shadow ray
     if renderer.shadows:  # cast shadows of the candidates: what SH bands 0-2 cannot make
         for d in ranked:
@@ -167,7 +168,6 @@ def directional_evidence(renderer: Renderer, target_linear: np.ndarray, params: 
     scores = [(_alternate(light, bases, a0, int(d), scale), int(d)) for d in ranked]
     (score, sh, coef), best = max(scores, key=lambda item: item[0][0])
     gain = float(score - base_score)
-    threshold = 2.5 * math.log(max(face.size / max(1.0, temperature), 2.0)) + MARGIN
     az, el = DirectionalLight(direction=tuple(dirs[best])).angles()
     out.update(gain=gain, threshold=float(threshold), on=bool(gain > threshold),
                azimuth_deg=math.degrees(az), elevation_deg=math.degrees(el),
