@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import time
 
-from mcmcfit.fitting.effects_choice import directional_evidence, with_directional
+from mcmcfit.fitting.effects_choice import SCREEN_RATIO, directional_evidence, with_directional
 from mcmcfit.fitting.gaussian_stage import sampling_coordinates
 from mcmcfit.sampling.kernel import init
 
@@ -55,7 +55,10 @@ class EffectPhases:
         if cfg.effects == "sh+directional":
             return {"decision": "sh+directional", "reason": "set by --effects sh+directional",
                     "evidence": shown}
-        if ev["on"]:
+        if ev.get("first_pass_ratio", 1.0) < SCREEN_RATIO:
+            reason = (f"the best directional light is weak ({ev['first_pass_ratio']:.2f} of the "
+                      f"ambient shading, screen {SCREEN_RATIO}): no shadow ray cast")
+        elif ev["on"]:
             reason = (f"a directional light explains the photograph better by "
                       f"{ev['gain']:.0f} nats (threshold {ev['threshold']:.0f})")
         elif math.isfinite(ev["threshold"]):
