@@ -68,11 +68,13 @@ class SceneCaster:
                                  tfar=float(params.camera.far - params.camera.near))
         return np.asarray(hits.prim_id)
 
-    def shadow(self, params: RenderParameter, pixels: np.ndarray) -> np.ndarray:
+    def shadow(self, params: RenderParameter, pixels: np.ndarray, *, rays: int = 1,
+               spread_deg: float = 0.0) -> np.ndarray:
         """Return the directional light's visibility (1 lit, 0 shadowed) at ``pixels`` (row-major).
 
-        The pixels' rays are cast for their surface points, then one shadow ray
-        from each towards the light (:func:`~albedo_model.render.visibility.directional_visibility`).
+        The pixels' rays are cast for their surface points, then ``rays`` shadow
+        rays from each over a light of angular radius ``spread_deg``
+        (:func:`~albedo_model.render.visibility.directional_visibility`).
         """
         self._scene(params)
         o, d = self._rays
@@ -81,7 +83,7 @@ class SceneCaster:
         vertices = self._caster_vertices
         return directional_visibility(hits, vertices, self.model.triangles,
                                       params.pose, params.directional_light.direction,
-                                      self._caster)
+                                      self._caster, rays=rays, spread_deg=spread_deg)
 
     def cast(self, params: RenderParameter) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(prim_id (H W,) int32, t (H W,) float32)`` of a ray cast at ``params``."""

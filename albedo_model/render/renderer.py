@@ -39,9 +39,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from albedo_model.camera import (
-    camera_rays, euler_rotation, pixel_window,
-)
+from albedo_model.camera import camera_rays, euler_rotation, pixel_window
 from albedo_model.errors import InputError
 from albedo_model.render.instances import ModelInstances
 from albedo_model.shading.interpolation import needs_view
@@ -54,12 +52,10 @@ from albedo_model.render.stages import (
 )
 from albedo_model.render.state import Deferred, HostAlbedo, Rendered, RenderState
 from albedo_model.render.cache_table import (
-    BlockVersions, bump, new_stamp, new_versions, stage_key, stale,
-)
+    BlockVersions, bump, new_stamp, new_versions, stage_key, stale)
 from albedo_model.render.albedo_updates import DeviceAlbedo
 from albedo_model.render.pixel_work import (
-    choose_pixel_set, compose, packed_camera, pixel_coordinates,
-)
+    choose_pixel_set, compose, packed_camera, pixel_coordinates)
 from albedo_model.render.scene_slots import SceneSlots
 from albedo_model.shading.image_formation import Effects, Shaded, effects_for, pack_shading_params, to_hwc
 from albedo_model.render.shadows import state_shadow
@@ -92,18 +88,23 @@ class Renderer:
         Ray-casting threads (1 or 2); default min(2, CPUs).
     directional_specular_map : bool
         Scale the directional light's Blinn-Phong term by the specular albedo.
+    shadow_rays, shadow_spread_deg : int, float
+        Shadow rays per face pixel and the light's angular radius they sample
+        (1 ray: hard shadows; more: soft edges).
     """
 
     def __init__(self, model: MorphableModel, *, specular: bool = True, gamma: bool = False,
                  shadows: bool = False, background=(0.0, 0.0, 0.0), threads: int | None = None,
-                 directional_specular_map: bool = False):
-        self.model = model
+                 directional_specular_map: bool = False, shadow_rays: int = 1,
+                 shadow_spread_deg: float = 3.0):
+        if not (isinstance(shadow_rays, int) and shadow_rays >= 1):
+            raise InputError(f"shadow_rays must be an integer >= 1, got {shadow_rays!r}")
+        self.model, self._threads = model, threads
         self.specular = bool(specular and model.specular is not None)
-        self.gamma = bool(gamma)
-        self.shadows = bool(shadows)
+        self.gamma, self.shadows = bool(gamma), bool(shadows)
         self.directional_specular_map = bool(directional_specular_map)
+        self.shadow_rays, self.shadow_spread_deg = shadow_rays, float(shadow_spread_deg)
         self.background = tuple(float(b) for b in background)
-        self._threads = threads
         self._triangles = jnp.asarray(model.triangles, jnp.int32)
         self._slots: SceneSlots | None = None
         # model-frame rays of the last cast (origins, directions), and the scene they are for
@@ -308,7 +309,8 @@ class Renderer:
 
     def _shadow_cache(self, state: RenderState, effects: Effects):
         caster = self._slots.candidate if state.geometry_pending else self._slots.current
-        return state_shadow(state, effects, caster, self.model.triangles, self.ray_counts)
+        return state_shadow(state, effects, caster, self.model.triangles, self.ray_counts,
+                            rays=self.shadow_rays, spread_deg=self.shadow_spread_deg)
 
     def _shading_inputs(self, state: RenderState, effects: Effects | None):
         eff = state.effects if effects is None else effects
@@ -387,14 +389,12 @@ class Renderer:
 
 
 def render(model: MorphableModel, params: RenderParameter, *, specular: bool = True,
-           gamma: bool = False, shadows: bool = False, background=(0.0, 0.0, 0.0)) -> Rendered:
+           gamma: bool = False, shadows: bool = False, background=(0.0, 0.0, 0.0),
+           shadow_rays: int = 1) -> Rendered:
     """Render one image of ``model`` with scene ``params`` (coefficients from ``params.momo``).
 
-    Returns
-    -------
-    Rendered
-        ``image`` (H, W, 3) float32, ``mask`` (H, W) bool and the buffers.
+    Returns a :class:`Rendered`: ``image`` (H, W, 3) float32, ``mask`` (H, W) bool, the buffers.
     """
     renderer = Renderer(model, specular=specular, gamma=gamma, shadows=shadows,
-                        background=background)
+                        background=background, shadow_rays=shadow_rays)
     return renderer.render(params)

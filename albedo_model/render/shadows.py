@@ -2,8 +2,8 @@
 
 A state's shadow is the visibility of the directional light at its pixel set
 (:func:`~albedo_model.render.visibility.directional_visibility`: one occlusion
-ray per face pixel, against the scene the state's geometry lives in). It is
-keyed on the ``shadow`` row of :data:`~albedo_model.render.cache_table.STAGE_DEPS`
+ray per face pixel, a few for a soft edge, against the scene the state's
+geometry lives in). It is keyed on the ``shadow`` row of :data:`~albedo_model.render.cache_table.STAGE_DEPS`
 (geometry, pose, camera, directional light): an SH light, albedo or colour move
 reuses the shadow of the state it starts from, a light-direction move re-casts
 only the shadow rays (no primary ray, no BVH work), and an effect set without
@@ -27,7 +27,8 @@ __all__ = ["state_shadow"]
 
 
 def state_shadow(state: RenderState, effects: Effects, caster: RayCaster,
-                 triangles: np.ndarray, counts: dict | None = None) -> tuple | None:
+                 triangles: np.ndarray, counts: dict | None = None, *, rays: int = 1,
+                 spread_deg: float = 0.0) -> tuple | None:
     """Return ``(key, (C,) float32 visibility at the state's pixel set)``, or None without shadows.
 
     Parameters
@@ -41,6 +42,9 @@ def state_shadow(state: RenderState, effects: Effects, caster: RayCaster,
     triangles : (m, 3) int array
     counts : dict, optional
         ``counts["shadow"]`` is incremented by the number of rays cast.
+    rays, spread_deg : int, float
+        Shadow rays per face pixel over a light of this angular radius (a soft
+        edge; :func:`~albedo_model.render.visibility.shadow_directions`).
     """
     if not effects.shadows:
         return None
@@ -49,9 +53,11 @@ def state_shadow(state: RenderState, effects: Effects, caster: RayCaster,
         return state.shadow
     p = state.params
     if counts is not None:
-        counts["shadow"] = counts.get("shadow", 0) + int(np.count_nonzero(state.hits.prim_id >= 0))
+        counts["shadow"] = counts.get("shadow", 0) + rays * int(
+            np.count_nonzero(state.hits.prim_id >= 0))
     shadow = directional_visibility(state.hits, state.shape.reshape(-1, 3), triangles, p.pose,
-                                    p.directional_light.direction, caster)
+                                    p.directional_light.direction, caster, rays=rays,
+                                    spread_deg=spread_deg)
     if state.pixels is not None:
         shadow = shadow[state.pixels]
     return key, shadow

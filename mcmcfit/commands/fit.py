@@ -58,6 +58,10 @@ def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "
                    "one sampled directional light with cast shadows (sh+directional), or "
                    "decided per photograph from how much the directional light improves "
                    "the fit at the mode (auto, the default; recorded in summary.json)")
+    p.add_argument("--soft-shadows", type=int, metavar="K", dest="shadow_rays",
+                   help="shadow rays per face pixel over a light of 3 degrees radius when the "
+                   "directional light is on: soft shadow edges at K times the shadow rays "
+                   "(default 1: hard shadows)")
     p.add_argument("--seed", type=int, default=0, help="root seed of the fit (default 0)")
     p.add_argument("--config", metavar="F.json",
                    help="fit settings as JSON (a config.json of an earlier fit); "
@@ -91,7 +95,8 @@ def config_from_args(args: argparse.Namespace, **defaults):
                ("noise", getattr(args, "noise", None)),
                ("sampler", getattr(args, "sampler", None)),
                ("model_colour", getattr(args, "model_colour", None)),
-               ("effects", getattr(args, "effects", None)))
+               ("effects", getattr(args, "effects", None)),
+               ("shadow_rays", getattr(args, "shadow_rays", None)))
     changes = {k: v for k, v in options if v is not None}
     if getattr(args, "serial", False):
         changes["parallel"] = False

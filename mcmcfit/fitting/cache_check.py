@@ -96,7 +96,8 @@ class CacheCheck:
         r = target.renderer
         reference = Renderer(r.model, specular=r.specular, gamma=r.gamma, shadows=r.shadows,
                              background=r.background, threads=1,
-                             directional_specular_map=r.directional_specular_map)
+                             directional_specular_map=r.directional_specular_map,
+                             shadow_rays=r.shadow_rays, shadow_spread_deg=r.shadow_spread_deg)
         self.reference = FaceTarget(reference, target.image_likelihood, target.landmarks,
                                     target.prior)
         self.data = tuple(data)

@@ -232,6 +232,12 @@ class FitConfig:
         climb, from how much a directional light improves the fit of the
         photograph (:mod:`mcmcfit.fitting.effects_choice`); no shadow ray is cast
         unless it is on.
+    shadow_rays : int
+        Shadow rays per face pixel (``--soft-shadows``): 1 casts hard shadows;
+        more sample a light of angular radius ``shadow_spread_deg`` (a soft edge,
+        that many times the shadow rays).
+    shadow_spread_deg : float
+        Angular radius of the directional light for soft shadows (degrees).
     prior : PriorConfig
     """
 
@@ -295,6 +301,8 @@ class FitConfig:
     check_cache: bool = False
     model_colour: str | None = None
     effects: str = "auto"
+    shadow_rays: int = 1
+    shadow_spread_deg: float = 3.0
     prior: PriorConfig = field(default_factory=PriorConfig)
 
     def __post_init__(self) -> None:

@@ -30,7 +30,7 @@ def check_config(cfg) -> None:
         count(name)
     if cfg.warmup_steps is not None:
         count("warmup_steps")
-    for name in ("chains", "thin", "bins", "solver_points", "albedo_points", "adapt_window",
+    for name in ("chains", "shadow_rays", "thin", "bins", "solver_points", "albedo_points", "adapt_window",
                  "check_every"):
         count(name, 1)
     count("emcee_walkers", 2 * 8 + 2)
@@ -75,5 +75,9 @@ def check_config(cfg) -> None:
                          f"(read from the model), got {cfg.model_colour!r}")
     if cfg.threads not in (None, 1, 2):
         raise InputError(f"fit config: threads must be 1, 2 or None, got {cfg.threads}")
+    if not (isinstance(cfg.shadow_spread_deg, (int, float))
+            and 0.0 <= cfg.shadow_spread_deg < 45.0):
+        raise InputError("fit config: shadow_spread_deg must be in [0, 45) degrees, "
+                         f"got {cfg.shadow_spread_deg!r}")
     if cfg.effects == "sh+directional" and cfg.sampler != "gaussian":
         raise InputError("fit config: effects 'sh+directional' needs the gaussian sampler")

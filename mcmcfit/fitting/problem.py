@@ -128,10 +128,12 @@ def fit_renderer(model, cfg, *, threads: int | None = None) -> Renderer:
 
     The directional light's Blinn-Phong term is scaled by the specular albedo,
     so that the render stays linear in the albedo coefficients. Shadows are
-    cast only while the scene's directional light is on.
+    cast only while the scene's directional light is on, with ``cfg.shadow_rays``
+    rays per pixel.
     """
     return Renderer(model, specular=cfg.specular, shadows=cfg.effects != "sh",
-                    directional_specular_map=True, threads=threads)
+                    directional_specular_map=True, threads=threads,
+                    shadow_rays=cfg.shadow_rays, shadow_spread_deg=cfg.shadow_spread_deg)
 
 
 def build_posterior(problem: FitProblem, noise: NoiseModel, *, threads: int | None = None,

@@ -218,7 +218,9 @@ class PosteriorCurvature:
         """Return the directional light's visibility at ``pixels`` (None without cast shadows)."""
         if not (self.jacobian.shadows and params.directional_light.enabled):
             return None
-        return self.caster.shadow(params, pixels)
+        r = self.target.renderer
+        return self.caster.shadow(params, pixels, rays=r.shadow_rays,
+                                  spread_deg=r.shadow_spread_deg)
 
     def _landmark_arrays(self, factor: LandmarkTarget, params: RenderParameter):
         if self._landmark_inputs is None:

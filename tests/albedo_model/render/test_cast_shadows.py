@@ -7,28 +7,20 @@ primary hits alone: the surface point of each face pixel from its triangle and
 barycentrics, one occlusion ray towards the light through
 ``trimesh.Trimesh.ray.intersects_any``: trimesh's own scene and offsets (it runs on
 its embreex backend when installed), none of the project's ray-casting code.
-Scenes come from ``renderer_scenes.scene``.
+The model and scenes are :mod:`shadow_scenes`.
 """
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
-import trimesh
-from renderer_scenes import scene
+from shadow_scenes import lit_scene, nosed_model, reference_occlusion, side_light
 
-from albedo_model.camera import euler_rotation, project
-from albedo_model.model import MorphableModel
+from albedo_model.camera import project
 from albedo_model.params import Block, ColorTransform, DirectionalLight, SHLight
-from albedo_model.pca import PCAPart
 from albedo_model.render.cache_table import stage_key
 from albedo_model.render.renderer import Renderer
 
-SIZE = (120, 120)
-RADIUS = 60.0
-NOSE_HEIGHT = 0.45  # of the radius
 #: |n . l| (flat triangle normal, unit light direction) below which a pixel is grazing:
 #: the renderer and the reference may disagree there (different ray offsets).
 GRAZING = 0.05
@@ -38,45 +30,6 @@ MIN_AGREEMENT = 0.99
 # (yaw, light azimuth, light elevation) in degrees: side lights that shadow 29-35 %
 # of the face, 1-6 % of it cast by the nose onto surface turned towards the light
 SHADOW_SCENES = [(-30, -60, 15), (-10, -45, 30), (0, 45, 15), (20, 55, 15), (40, 65, 25)]
-
-
-@functools.lru_cache(maxsize=1)
-def nosed_model(k: int = 3) -> MorphableModel:
-    """Return a sphere-with-a-nose morphable model (2562 vertices, outward triangles).
-
-    The first shape component lengthens the nose (+10 mm at the tip per unit
-    coefficient); the others are small random displacements.
-    """
-    mesh = trimesh.creation.icosphere(subdivisions=4, radius=RADIUS)
-    u = np.asarray(mesh.vertices) / RADIUS
-    profile = np.exp(-(u[:, 0] / 0.2) ** 2 - ((u[:, 1] + 0.05) / 0.35) ** 2) * (u[:, 2] > 0)
-    v = RADIUS * u * (1.0 + NOSE_HEIGHT * profile)[:, None]
-    n3 = 3 * len(v)
-    rng = np.random.default_rng(0)
-    nose = (RADIUS * u * profile[:, None]).ravel()  # displacement of a nose one radius long
-    q, _ = np.linalg.qr(np.column_stack([nose, rng.standard_normal((n3, k - 1))]))
-    q[:, 0] *= np.sign(q[:, 0] @ nose)
-    shape_sd = np.r_[10.0 * np.linalg.norm(nose) / RADIUS, np.full(k - 1, 2.0)]
-
-    def part(mean, variance):
-        basis, _ = np.linalg.qr(rng.standard_normal((n3, k)))
-        return PCAPart(mean, basis, np.full(k, variance))
-
-    colour = 0.45 + 0.15 * np.sin(v / 17.0)
-    return MorphableModel(v, np.asarray(mesh.faces), PCAPart(v.ravel(), q, shape_sd ** 2),
-                          part(colour.ravel(), 0.05), specular=part(np.full(n3, 0.3), 0.01))
-
-
-def side_light(azimuth_deg: float, elevation_deg: float, diffuse: float = 0.6) -> DirectionalLight:
-    """Return a white directional light without ambient and specular terms."""
-    return DirectionalLight.from_angles(np.radians(azimuth_deg), np.radians(elevation_deg),
-                                        (diffuse,) * 3, specular=(0.0, 0.0, 0.0))
-
-
-def lit_scene(yaw_deg: float, azimuth_deg: float, elevation_deg: float):
-    """Return the 120 x 120 scene of :func:`nosed_model`: dim frontal SH light, a side light."""
-    p = scene(size=SIZE, yaw=np.radians(yaw_deg), pitch=-0.1, sh=SHLight.frontal(0.3, 0.1))
-    return p._replace(directional_light=side_light(azimuth_deg, elevation_deg))
 
 
 def reference_shadow(state, triangles):
@@ -93,23 +46,9 @@ def reference_shadow(state, triangles):
     points : (F, 3) float
         The surface points (model frame).
     """
-    p = state.params
-    prim = np.asarray(state.hits.prim_id)
-    face = np.flatnonzero(prim >= 0)
-    vertices = np.asarray(state.shape, np.float64).reshape(-1, 3)
-    tri = np.asarray(triangles)[prim[face]]
-    bary = np.asarray(state.hits.bary, np.float64)[face]
-    u, v = bary[:, :1], bary[:, 1:2]
-    points = ((1.0 - u - v) * vertices[tri[:, 0]] + u * vertices[tri[:, 1]]
-              + v * vertices[tri[:, 2]])
-    rotation = euler_rotation(p.pose.roll, p.pose.yaw, p.pose.pitch)
-    d_world = np.asarray(p.directional_light.direction, np.float64)
-    light = rotation.T @ (d_world / np.linalg.norm(d_world))
-    mesh = trimesh.Trimesh(vertices, triangles, process=False)
-    origins = points + 1e-5 * mesh.scale * light  # off the point's own triangle
-    occluded = mesh.ray.intersects_any(origins, np.tile(light, (len(face), 1)))
-    n_dot_l = mesh.face_normals[prim[face]] @ light
-    return face, np.asarray(occluded, bool), n_dot_l, points
+    face, occluded, n_dot_l, points = reference_occlusion(
+        state, triangles, [state.params.directional_light.direction])
+    return face, occluded[0], n_dot_l, points
 
 
 def rendered_visibility(state) -> np.ndarray:
