@@ -15,7 +15,10 @@ are left out) and the face mask, which does not depend on the light.
 :class:`LightConditional` draws ``L' ~ N(m, Lambda^-1)``: an independence
 proposal whose mean and precision do not depend on ``L``, so the exact ratio is
 ``log N(L; m, Lambda^-1) - log N(L'; m, Lambda^-1)``; the kernel's joint MH test
-corrects what the clamp leaves.
+corrects what the clamp leaves. With a directional light whose highlight has the
+colour of its diffuse term (the fit's), the render is affine in its RGB
+strength too: :class:`LightSystem` ``directional`` adds it as a (K+1)-th row of
+``L`` and the move draws both (touching ``Block.LIGHT | Block.DIRECTIONAL``).
 
 This module imports only :mod:`albedo_model.params`, :mod:`albedo_model.render.cache_table`
 and :mod:`proposals` (albedo_solver, base).
@@ -34,7 +37,12 @@ from albedo_model.render.cache_table import Kept
 from proposals.albedo_solver import independence_draw
 from proposals.base import Move, ProposalState, check_scale, no_move
 
-__all__ = ["LightConditional", "LightSystemData", "LightSystem", "light_system"]
+__all__ = ["STRENGTH_PROPOSAL", "LightConditional", "LightSystemData", "LightSystem",
+           "light_system"]
+
+#: ``(mean, sd)`` of the Gaussian that stands in for the directional strength's prior in
+#: the proposal (the MH test applies the true log-normal prior; a draw <= 0 is rejected).
+STRENGTH_PROPOSAL = (0.5, 1.0)
 
 
 class LightSystem(NamedTuple):
@@ -49,16 +57,20 @@ class LightSystem(NamedTuple):
     n_pixels : int
     key : tuple or None
         Version stamps of the blocks it reads (the factorisation is kept while unchanged).
+    directional : bool
+        The last 3 unknowns are the directional light's RGB strength (its
+        transport a (K+1)-th row of ``L``), drawn with the SH light.
     """
 
     gram: np.ndarray
     rhs: np.ndarray
     n_pixels: int
     key: tuple | None = None
+    directional: bool = False
 
 
 def light_system(g: np.ndarray, mat: np.ndarray, target_minus_offset: np.ndarray,
-                 key: tuple | None = None) -> LightSystem:
+                 key: tuple | None = None, directional: bool = False) -> LightSystem:
     """Normal-equation terms from per-pixel transport.
 
     Parameters
@@ -70,6 +82,8 @@ def light_system(g: np.ndarray, mat: np.ndarray, target_minus_offset: np.ndarray
     target_minus_offset : (N, 3) float array
         ``t_pc - o_c``.
     key : tuple, optional
+    directional : bool
+        ``g``'s last row is the directional light's transport (see :class:`LightSystem`).
     """
     g = np.asarray(g, np.float64)
     m = np.asarray(mat, np.float64)
@@ -79,7 +93,7 @@ def light_system(g: np.ndarray, mat: np.ndarray, target_minus_offset: np.ndarray
     gram = np.einsum("de,deij->idje", mtm, h).reshape(3 * k, 3 * k)
     u = np.asarray(target_minus_offset, np.float64) @ m  # u_pd = sum_c (t_pc - o_c) M_cd
     rhs = np.einsum("pdi,pd->id", g, u).reshape(3 * k)
-    return LightSystem(gram, rhs, int(g.shape[0]), key)
+    return LightSystem(gram, rhs, int(g.shape[0]), key, directional)
 
 
 #: ``data(state) -> LightSystem or None`` of the accepted state.
@@ -115,7 +129,7 @@ class LightConditional:
     prior_sd: np.ndarray
     sigma: float = 0.043
     name: str = "light-conditional"
-    touches: ClassVar[Block] = Block.LIGHT
+    touches: ClassVar[Block] = Block.LIGHT | Block.DIRECTIONAL
     _factorisation: Kept = field(default_factory=Kept, repr=False)
 
     def __post_init__(self) -> None:
@@ -136,8 +150,21 @@ class LightConditional:
         system = self.data(state)
         if system is None or system.n_pixels == 0:
             return no_move(params, self.name)
+        light = params.directional_light
+        if system.directional:  # the SH light and the directional strength together
+            mean = np.vstack([self.prior_mean, np.full((1, 3), STRENGTH_PROPOSAL[0])])
+            sd = np.vstack([self.prior_sd, np.full((1, 3), STRENGTH_PROPOSAL[1])])
+            x = np.concatenate([L.reshape(-1), np.asarray(light.diffuse, np.float64)])
+            z = np.concatenate([z, rng.normal(0.0, 1.0, 3)])
+        else:
+            mean, sd, x = self.prior_mean, self.prior_sd, L.reshape(-1)
         cond = self._factorisation.get(system.key, lambda: _conditional(
-            system, self.sigma, self.prior_mean, self.prior_sd))
-        new, ratio = independence_draw(L.reshape(-1), z, cond)
-        return Move(params._replace(environment_map=SHLight(new.reshape(L.shape))), ratio,
-                    Block.LIGHT, self.name, joint=True)
+            system, self.sigma, mean, sd))
+        new, ratio = independence_draw(x, z, cond)
+        moved = params._replace(environment_map=SHLight(new[:L.size].reshape(L.shape)))
+        if not system.directional:
+            return Move(moved, ratio, Block.LIGHT, self.name, joint=True)
+        strength = tuple(float(v) for v in new[L.size:])
+        moved = moved._replace(directional_light=light._replace(diffuse=strength,
+                                                                specular=strength))
+        return Move(moved, ratio, Block.LIGHT | Block.DIRECTIONAL, self.name, joint=True)

@@ -144,10 +144,23 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
             return -0.5 * jnp.sum(weight * r * r)
         return jax.value_and_grad(value)(x)
 
+    @jax.jit
+    def robust_value_and_grad(x, scene, hits, albedo_mean, albedo_basis, target, weight,
+                              outlier, inv_var):
+        """Robust read-out ``sum weight log(exp(-inv_var ||R - target||^2 / 2) + exp(outlier))``."""
+        def value(xx):
+            v, normals = vertices(xx, scene)
+            attrs = attributes(v, normals, albedo_table(xx, albedo_mean, albedo_basis), xx,
+                               scene, hits)
+            r = shading(attrs, xx, scene, hits) - target
+            return jnp.sum(weight * jnp.logaddexp(-0.5 * inv_var * jnp.sum(r * r, axis=0),
+                                                  outlier))
+        return jax.value_and_grad(value)(x)
+
     del ks, ke
     return (jax.jit(vertices), jax.jit(albedo_table), jax.jit(attributes), jax.jit(shading),
             jax.jit(vertex_tangents), attribute_tangents, jax.jit(albedo_tangents),
-            shading_tangents, gaussian_value_and_grad)
+            shading_tangents, gaussian_value_and_grad, robust_value_and_grad)
 
 
 _cached_stages = functools.cache(_stages)
@@ -284,6 +297,22 @@ class PixelJacobian:
         stages, scene, x = self._prepare(params)
         value, grad = stages[8](x, scene, hits._replace(pixels=None), self._albedo_mean,
                                 self._albedo_basis, target, weight)
+        return float(value), np.asarray(grad, np.float64)
+
+    def robust_value_and_grad(self, params: RenderParameter, hits: FixedHits, target: np.ndarray,
+                              weight: np.ndarray, outlier: np.ndarray,
+                              inv_var: float) -> tuple[float, np.ndarray]:
+        """Return ``sum weight log(exp(-inv_var ||R - target||^2 / 2) + exp(outlier))`` and its gradient.
+
+        The robust foreground's read-out (a Gaussian pixel or an occluder, the
+        label summed out), up to the Gaussian's normaliser; ``outlier`` (C,)
+        is each pixel's occluder log density relative to it. Otherwise as
+        :meth:`gaussian_value_and_grad`.
+        """
+        stages, scene, x = self._prepare(params)
+        value, grad = stages[9](x, scene, hits._replace(pixels=None), self._albedo_mean,
+                                self._albedo_basis, target, weight, outlier,
+                                jnp.float32(inv_var))
         return float(value), np.asarray(grad, np.float64)
 
 

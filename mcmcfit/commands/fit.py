@@ -62,6 +62,10 @@ def add_schedule_arguments(p: argparse.ArgumentParser, *, steps_default: str = "
                    help="shadow rays per face pixel over a light of 3 degrees radius when the "
                    "directional light is on: soft shadow edges at K times the shadow rays "
                    "(default 1: hard shadows)")
+    p.add_argument("--foreground", choices=("gaussian", "robust"),
+                   help="the image likelihood: every face pixel Gaussian around the render "
+                   "(default), or robust: each pixel the face or, with a probability measured "
+                   "per photograph, something the model cannot explain (hair, glasses, a hand)")
     p.add_argument("--seed", type=int, default=0, help="root seed of the fit (default 0)")
     p.add_argument("--config", metavar="F.json",
                    help="fit settings as JSON (a config.json of an earlier fit); "
@@ -96,7 +100,8 @@ def config_from_args(args: argparse.Namespace, **defaults):
                ("sampler", getattr(args, "sampler", None)),
                ("model_colour", getattr(args, "model_colour", None)),
                ("effects", getattr(args, "effects", None)),
-               ("shadow_rays", getattr(args, "shadow_rays", None)))
+               ("shadow_rays", getattr(args, "shadow_rays", None)),
+               ("foreground", getattr(args, "foreground", None)))
     changes = {k: v for k, v in options if v is not None}
     if getattr(args, "serial", False):
         changes["parallel"] = False

@@ -23,7 +23,7 @@ Phases:
 This module imports :mod:`albedo_model` (default_model, params), :mod:`mcmcfit.fitting` (adaptation,
 cache_check, landmark_stage_emcee, landmark_starts, problem), :mod:`mcmcfit.proposal_data`,
 :mod:`mcmcfit.sampling` (chain, kernel), :mod:`mcmcfit.targets` (gradient, landmarks,
-noise_model) and
+noise_model, robust_foreground) and
 :mod:`proposals` (base, light_solver, schedule).
 """
 
@@ -50,6 +50,7 @@ from mcmcfit.proposal_data.albedo import RenderAlbedoData
 from mcmcfit.proposal_data.face_pixels import unsaturated
 from mcmcfit.proposal_data.light import RenderLightData
 from mcmcfit.proposal_data.light_system import RenderLightSystem
+from mcmcfit.targets.robust_foreground import robust_responsibilities
 from mcmcfit.sampling.chain import ChainRecord, ChainRecorder, ChainResult
 from mcmcfit.sampling.kernel import ChainState, init
 from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster, coordinate_gradient
@@ -136,12 +137,25 @@ class ChainSession(EffectPhases, GaussianPhases):
         their kept systems survive every rebuild of the proposal.
         """
         cfg, post = self.cfg, self.posterior
+        weights = self._face_weights()
         self.light_data = RenderLightData(post.renderer, post.image_target.linear,
                                           n_points=cfg.solver_points, seed=self._data_seeds[0])
-        self.light_system = RenderLightSystem(post.image_target.linear, region=self.region)
+        self.light_system = RenderLightSystem(post.image_target.linear, region=self.region,
+                                              weights=weights, directional=True)
         self.albedo_data = RenderAlbedoData(post.renderer, post.image_target.linear,
                                             n_points=cfg.albedo_points, seed=self._data_seeds[1],
-                                            region=self.region)
+                                            region=self.region, weights=weights)
+
+    def _face_weights(self):
+        """Return a robust foreground's face probabilities (H W,) at the mode (fixed weights), or None."""
+        lik = self.posterior.face.image_likelihood
+        if lik is None or not lik.robust or getattr(self, "mode", None) is None:
+            return None
+        out = self.posterior.renderer.render(self.mode.params)
+        face_log, out_log = lik.robust_logs()
+        return robust_responsibilities(np.asarray(out.image, np.float64).reshape(-1, 3),
+                                       lik.target.linear.reshape(-1, 3), face_log, out_log,
+                                       lik.sigma)
 
     def _build_proposal(self) -> None:
         cfg, post = self.cfg, self.posterior

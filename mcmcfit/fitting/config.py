@@ -238,6 +238,16 @@ class FitConfig:
         that many times the shadow rays).
     shadow_spread_deg : float
         Angular radius of the directional light for soft shadows (degrees).
+    foreground : {"gaussian", "robust"}
+        The image likelihood of the Gaussian sampler's pixel region
+        (``--foreground``): every pixel the face under Gaussian noise, or each
+        pixel the face or, with a probability estimated per photograph (EM at
+        the mode, from ``outlier_probability``), something the model cannot
+        explain (hair, glasses, a hand; the image's colour density), summed
+        out (:func:`mcmcfit.targets.likelihoods.robust_region_terms`).
+    outlier_probability : float
+        The robust foreground's outlier probability before it is measured (and
+        with ``noise="fixed"``).
     prior : PriorConfig
     """
 
@@ -303,6 +313,8 @@ class FitConfig:
     effects: str = "auto"
     shadow_rays: int = 1
     shadow_spread_deg: float = 3.0
+    foreground: str = "gaussian"
+    outlier_probability: float = 0.05
     prior: PriorConfig = field(default_factory=PriorConfig)
 
     def __post_init__(self) -> None:

@@ -49,7 +49,8 @@ def check_config(cfg) -> None:
                "background": ("smoothed", "histogram"),
                "init_pose": ("lsq", "similarity"), "init_light": ("solve", "frontal"),
                "noise": ("estimated", "fixed"), "sampler": ("gaussian", "reference", "random-walk"),
-               "hmc_triangles": ("cast", "mode"), "effects": ("auto", "sh", "sh+directional")}
+               "hmc_triangles": ("cast", "mode"), "effects": ("auto", "sh", "sh+directional"),
+               "foreground": ("gaussian", "robust")}
     for name, allowed in choices.items():
         if getattr(cfg, name) not in allowed:
             raise InputError(f"fit config: {name} must be one of {allowed}, "
@@ -79,5 +80,11 @@ def check_config(cfg) -> None:
             and 0.0 <= cfg.shadow_spread_deg < 45.0):
         raise InputError("fit config: shadow_spread_deg must be in [0, 45) degrees, "
                          f"got {cfg.shadow_spread_deg!r}")
+    if not 0.0 < cfg.outlier_probability < 0.5:
+        raise InputError("fit config: outlier_probability must be in (0, 0.5), "
+                         f"got {cfg.outlier_probability!r}")
+    if cfg.foreground == "robust" and cfg.sampler != "gaussian":
+        raise InputError("fit config: foreground 'robust' needs the gaussian sampler (its "
+                         "fixed pixel region)")
     if cfg.effects == "sh+directional" and cfg.sampler != "gaussian":
         raise InputError("fit config: effects 'sh+directional' needs the gaussian sampler")

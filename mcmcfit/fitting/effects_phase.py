@@ -8,8 +8,11 @@ one posterior. With the directional light on, each chain starts it from its own
 evidence (:func:`~mcmcfit.fitting.effects_choice.with_directional`) and the
 rounds of climbs that follow polish it with cast shadows.
 
-This module imports :mod:`mcmcfit.fitting` (effects_choice, gaussian_stage) and
-:mod:`mcmcfit.sampling.kernel`.
+With a robust foreground, the pixels more likely an occluder than the face at
+the mode are left out of the evidence.
+
+This module imports :mod:`mcmcfit.fitting` (effects_choice, gaussian_stage),
+:mod:`mcmcfit.sampling.kernel` and :mod:`mcmcfit.targets` (background, robust_foreground).
 """
 
 from __future__ import annotations
@@ -17,9 +20,13 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
+
 from mcmcfit.fitting.effects_choice import SCREEN_RATIO, directional_evidence, with_directional
 from mcmcfit.fitting.gaussian_stage import sampling_coordinates
 from mcmcfit.sampling.kernel import init
+from mcmcfit.targets.background import occluder_log_density
+from mcmcfit.targets.robust_foreground import robust_logs, robust_responsibilities
 
 __all__ = ["EffectPhases"]
 
@@ -47,6 +54,8 @@ class EffectPhases:
                     "reason": f"the {cfg.sampler} sampler has no directional-light moves"}
         t0 = time.perf_counter()
         region, noise = self._measure(self.mode.params)
+        if noise.outlier_probability > 0.0:  # robust: what looks occluded is no evidence of light
+            region = region & ~self._occluded(self.mode.params, region, noise)
         ev = directional_evidence(self.posterior.renderer, self.posterior.image_target.linear,
                                   self.mode.params, region, noise.sigma, noise.temperature)
         ev["seconds"] = time.perf_counter() - t0
@@ -68,6 +77,22 @@ class EffectPhases:
             reason = "no directional light with positive strength improves the fit"
         return {"decision": "sh+directional" if ev["on"] else "sh", "reason": reason,
                 "evidence": shown}
+
+    def _occluded(self, params, region, noise):
+        """Region pixels the robust foreground thinks more likely an occluder than the face (H W,)."""
+        target = self.posterior.image_target
+        out = self.posterior.renderer.render(params)
+        pix = np.flatnonzero(np.asarray(region, bool).reshape(-1))
+        eps = np.broadcast_to(np.asarray(noise.outlier_prior, np.float64), (np.size(region),))
+        occluder = occluder_log_density(target.linear, ~np.asarray(region, bool),
+                                        bins=self.cfg.bins, sigma=noise.sigma)
+        face_log, out_log = robust_logs(noise.sigma, eps[pix], occluder.reshape(-1)[pix])
+        face = robust_responsibilities(np.asarray(out.image, np.float64).reshape(-1, 3)[pix],
+                                       target.linear.reshape(-1, 3)[pix], face_log, out_log,
+                                       noise.sigma)
+        occluded = np.zeros(np.size(region), bool)
+        occluded[pix] = face < 0.5
+        return occluded.reshape(np.shape(region))
 
     def set_effects(self, decision: str) -> bool:
         """Switch the directional light on when ``decision`` says so; return whether it is on."""

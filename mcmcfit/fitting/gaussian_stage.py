@@ -33,7 +33,7 @@ Helpers:
 
 This module imports :mod:`albedo_model` (camera, params, scene_vector, render),
 :mod:`mcmcfit.fitting` (mode, problem), :mod:`mcmcfit.proposal_data.face_pixels`,
-:mod:`mcmcfit.sampling` (chain, kernel), :mod:`mcmcfit.targets` (curvature, noise_model) and
+:mod:`mcmcfit.sampling` (chain, kernel), :mod:`mcmcfit.targets` (background, curvature, noise_model) and
 :mod:`proposals.laplace` (coordinates, image_scale, schedule, widening).
 """
 
@@ -52,6 +52,7 @@ from mcmcfit.fitting.problem import build_posterior, provisional_noise
 from mcmcfit.proposal_data.face_pixels import unsaturated
 from mcmcfit.sampling.chain import ChainRecord, ChainRecorder
 from mcmcfit.sampling.kernel import init, run
+from mcmcfit.targets.background import occluder_log_density
 from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.laplace.coordinates import SamplingCoordinates
@@ -115,17 +116,20 @@ def sampling_coordinates(params: RenderParameter,
 
 
 def region_and_noise(renderer: Renderer, target_linear: np.ndarray, params: RenderParameter,
-                     region: np.ndarray) -> NoiseModel:
+                     region: np.ndarray, background: np.ndarray | None = None) -> NoiseModel:
     """Return the noise model measured over ``region`` (H W,) on the render of ``params``.
 
     ``sigma`` is the RMS residual over the region's pixels and channels, the
     temperature their residuals' correlation area (pixels per independent
-    residual); ``n_face`` counts the region's pixels.
+    residual); ``n_face`` counts the region's pixels. With ``background`` (an
+    (H, W) occluder log density) the foreground is robust: sigma and the
+    occlusion prior by EM (:func:`~mcmcfit.targets.noise_model.robust_noise`).
     """
     rendered = renderer.render(params)
     h, w = target_linear.shape[:2]
     mask = np.asarray(region, bool).reshape(h, w)
-    return estimate_noise(np.asarray(target_linear), rendered.image, mask)
+    bg = None if background is None else np.asarray(background, np.float64).reshape(h, w)
+    return estimate_noise(np.asarray(target_linear), rendered.image, mask, background=bg)
 
 
 class DrawPhases:
@@ -309,8 +313,15 @@ class GaussianPhases(DrawPhases):
         region = self._region(params)
         if self.cfg.noise != "estimated":
             return region, provisional_noise(self.cfg)
+        occluder = None
+        if self.cfg.foreground == "robust":  # the colours outside the region
+            target = self.posterior.image_target
+            occluder = occluder_log_density(
+                target.linear, ~np.asarray(region, bool), bins=self.cfg.bins,
+                sigma=self.posterior.noise.sigma if self.cfg.background == "smoothed" else None)
         return region, region_and_noise(self.posterior.renderer,
-                                        self.posterior.image_target.linear, params, region)
+                                        self.posterior.image_target.linear, params, region,
+                                        occluder)
 
     def mode_params(self) -> RenderParameter:
         """Return the mode the last climb reached."""

@@ -116,9 +116,12 @@ def fit_joint(images: Sequence[np.ndarray], landmarks: Sequence, model: Morphabl
     InputError
         Fewer than 2 or more than :data:`MAX_IMAGES` images, a count of
         landmark sets that differs, a bad image or landmark set (named by its
-        position), or a sampler other than ``"gaussian"``.
+        position), a sampler other than ``"gaussian"``, or a robust foreground.
     """
     cfg = config or FitConfig()
+    if cfg.foreground != "gaussian":
+        raise InputError("a joint fit has the Gaussian foreground only (--foreground robust "
+                         "is for single photographs)")
     if not 2 <= len(images) <= MAX_IMAGES:
         raise InputError(f"a joint fit takes 2 to {MAX_IMAGES} photographs, got {len(images)}")
     if len(landmarks) != len(images):

@@ -28,6 +28,7 @@ from albedo_model.params import ImageSize, RenderParameter
 from albedo_model.render.renderer import Renderer
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.sampling.param_vector import ParamLayout
+from mcmcfit.targets.background import occluder_log_density
 from mcmcfit.targets.face import FaceTarget
 from mcmcfit.targets.image import ImageLikelihood, ImageTarget, prepare_image_target
 from mcmcfit.targets.landmarks import FaceBoxTarget, LandmarkGeometry, LandmarkTarget
@@ -76,7 +77,8 @@ def comparison_colour(problem: FitProblem) -> str:
 
 def provisional_noise(cfg: FitConfig) -> NoiseModel:
     """Return the noise model of the landmark stage and the first warm-up phase (the configured one)."""
-    return fixed_noise(cfg.sigma_px, cfg.temperature)
+    return fixed_noise(cfg.sigma_px, cfg.temperature,
+                       cfg.outlier_probability if cfg.foreground == "robust" else 0.0)
 
 
 def landmark_factor(problem: FitProblem, geometry: LandmarkGeometry):
@@ -166,10 +168,15 @@ def build_posterior(problem: FitProblem, noise: NoiseModel, *, threads: int | No
     smooth = noise.sigma if cfg.background == "smoothed" else None
     target = prepare_image_target(problem.image, bins=cfg.bins, smooth_sigma=smooth,
                                   colour=comparison_colour(problem))
+    robust = region is not None and np.any(np.asarray(noise.outlier_prior) > 0.0)
+    occluder = occluder_log_density(target.linear, ~np.asarray(region, bool), bins=cfg.bins,
+                                    sigma=smooth) if robust else None
     lik = ImageLikelihood(target, kind="independent" if region is not None else cfg.likelihood,
                           sigma=noise.sigma, trim_fraction=cfg.trim_fraction,
                           temperature=max(1.0, noise.temperature), region=region,
-                          background=renderer.background)
+                          background=renderer.background,
+                          outlier_probability=noise.outlier_prior if robust else 0.0,
+                          occluder=None if occluder is None else occluder.reshape(-1))
     factor = landmark_factor(problem, geometry)
     prior = LogPrior(cfg.prior)
     return Posterior(renderer, target, noise, FaceTarget(renderer, lik, factor, prior),

@@ -93,7 +93,8 @@ def albedo_coefficient_samples(result: FitResult) -> np.ndarray:
 
 
 def estimate_residual_scale(result: FitResult, model: MorphableModel,
-                            scenes: list[RenderParameter], images: list[np.ndarray]) -> dict:
+                            scenes: list[RenderParameter], images: list[np.ndarray], *,
+                            exclude: list | None = None) -> dict:
     """Scale the model's diffuse residual variance to the photographs (:mod:`~mcmcfit.outputs.residual_scale`).
 
     Parameters
@@ -104,6 +105,8 @@ def estimate_residual_scale(result: FitResult, model: MorphableModel,
         Each photograph's scene at the posterior mean.
     images : list of (H, W, 3) float
         The photographs as fitted (gamma-encoded).
+    exclude : list of (H, W) bool or None, optional
+        Per photograph, pixels left out (e.g. those a robust fit found occluded).
 
     Returns
     -------
@@ -121,10 +124,11 @@ def estimate_residual_scale(result: FitResult, model: MorphableModel,
     mean_coef = albedo_coefficient_samples(result).mean(axis=0)
     diffuse = model.diffuse_instance(mean_coef[:model.diffuse.rank])
     specular = model.specular_instance(mean_coef if model.shared_albedo else None)
+    exclude = list(exclude) if exclude is not None else [None] * len(images)
     evidence = [residual_evidence(model, p, im, diffuse, specular=specular,
                                   render_specular=bool(result.config.specular),
-                                  seed=int(result.seed))
-                for p, im in zip(scenes, images)]
+                                  seed=int(result.seed), exclude=ex)
+                for p, im, ex in zip(scenes, images, exclude)]
     scale = residual_scale(evidence)
     return {"scale_rgb": None if scale is None else [float(v) for v in scale],
             "pairs": [0 if e is None else e.pairs for e in evidence], "base": base,

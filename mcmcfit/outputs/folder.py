@@ -10,6 +10,9 @@ Files (see the README's "Using it" section):
 ``best.rps``, ``mean.rps``      best sample (highest image likelihood) and posterior mean (V4)
 ``target.png``, ``fit.png``     the input, and the best fit rendered over it
 ``fit_landmarks.png``           target and fitted landmarks, fit, difference (figure)
+``occlusion.png``               ``--foreground robust``: each face pixel's probability of being
+                                an occluder at the posterior mean (figure;
+                                :mod:`mcmcfit.outputs.occlusion`)
 ``albedo_<part>_<view>.png``    posterior-mean albedo, display-encoded, RGBA (view: ``fitted``
                                 or ``frontal``; part: ``diffuse`` or ``specular``)
 ``uncertainty_<part>_<view>``   posterior std (mean over R, G, B) with a colour bar (figure):
@@ -47,7 +50,6 @@ from albedo_model.io.mesh_export import write_mesh
 from albedo_model.io.rps import write_rps
 from mcmcfit.fitting.problem import fit_renderer
 from mcmcfit.fitting.result import FitResult
-from mcmcfit.targets.landmarks import target_landmarks
 from mcmcfit.outputs.albedo_decoding import model_colour_record
 from mcmcfit.outputs.albedo_summary import (
     albedo_interval_fields,
@@ -62,10 +64,12 @@ from mcmcfit.outputs.figures import (
     uncertainty_scale,
 )
 from mcmcfit.outputs.inference_data import inference_data, write_posterior_nc
+from mcmcfit.outputs.occlusion import face_probability, occlusion_record, save_occlusion_map
+from mcmcfit.outputs.posterior import visible_vertices
 from mcmcfit.outputs.summary import build_summary, landmark_errors, software_versions
 from mcmcfit.outputs.truth import Truth, albedo_error
 from mcmcfit.outputs.vertex_maps import encode_display, frontal_params, vertex_image
-from mcmcfit.outputs.posterior import visible_vertices
+from mcmcfit.targets.landmarks import target_landmarks
 
 __all__ = ["OUTPUT_FILES", "fit_inference_data", "write_fit_outputs"]
 
@@ -81,7 +85,7 @@ OUTPUT_FILES = (
 #: FitConfig fields of the likelihoods' noise model (``posterior.nc`` attrs, with the fitted
 #: ``FitResult.noise`` when the fit has one).
 _NOISE_FIELDS = ("noise", "sigma_px", "temperature", "likelihood", "trim_fraction", "background",
-                 "sigma_lm", "lm_hidden_probability")
+                 "foreground", "outlier_probability", "sigma_lm", "lm_hidden_probability")
 
 
 def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, image: np.ndarray, *,
@@ -126,8 +130,10 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     shown = np.clip(rendered.image, 0.0, 1.0) if space.is_srgb else encode_display(rendered.image)
     fitted = rendered._replace(image=np.asarray(shown, np.float32))
     visible = visible_vertices(renderer, state)
-    post = posterior_albedo(result, model, visible,
-                            residual_scale=estimate_residual_scale(result, model, [mean], [image]))
+    occlusion = face_probability(result, renderer, mean, image)
+    occluded = None if occlusion is None else occlusion[1] & (occlusion[0] < 0.5)
+    post = posterior_albedo(result, model, visible, residual_scale=estimate_residual_scale(
+        result, model, [mean], [image], exclude=[occluded]))
     write_posterior_npz(out / "posterior.npz", post)
     write_rps(out / "best.rps", best)
     write_rps(out / "mean.rps", mean)
@@ -135,6 +141,8 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
     target = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     write_png(out / "target.png", target)
     write_png(out / "fit.png", np.where(fitted.mask[..., None], fitted.image, target))
+    if occlusion is not None:
+        save_occlusion_map(out / "occlusion.png", *occlusion)
 
     clicked = target_landmarks(landmarks) if landmarks is not None else {}
     lm_err = None
@@ -190,6 +198,8 @@ def write_fit_outputs(folder: str | os.PathLike, result: FitResult, loaded, imag
                             model=model_colour_record(space),
                             truth_error=truth_error,
                             extra_timings={"outputs_s": time.perf_counter() - t0})
+    if occlusion is not None:
+        summary["occlusion"] = occlusion_record(*occlusion, result.noise["outlier_probability"])
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False) + "\n",
                                       encoding="utf-8")
     from mcmcfit.outputs.report import write_report

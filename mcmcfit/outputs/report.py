@@ -231,6 +231,12 @@ def render_report(summary: dict, files: set[str] | None = None) -> str:
             parts.append(_figure(name, cap, "small"))
     if have("fit_landmarks.png"):
         parts.append("<br>" + _figure("fit_landmarks.png", "landmarks, fit and difference"))
+    if have("occlusion.png"):
+        occ = summary.get("occlusion") or {}
+        share = occ.get("occluded_fraction")
+        parts.append("<br>" + _figure("occlusion.png", "robust foreground: pixels the face model "
+                                      "cannot explain" + ("" if share is None else
+                                                         f" ({100 * share:.1f} % of the face)")))
     detection = (summary.get("inputs") or {}).get("landmark_detection")
     if detection:
         flag = (" <b>Low confidence (near profile): check the points.</b>"

@@ -107,7 +107,7 @@ def _field_model(model: MorphableModel, diffuse: np.ndarray, specular: np.ndarra
 def residual_evidence(model: MorphableModel, params: RenderParameter, image: np.ndarray,
                       diffuse: np.ndarray, *, specular: np.ndarray | None = None,
                       render_specular: bool = True, draws: int = 4,
-                      seed: int = 0) -> ResidualEvidence | None:
+                      seed: int = 0, exclude: np.ndarray | None = None) -> ResidualEvidence | None:
     """Measure a photograph's albedo-space residual at the posterior mean (see the module notes).
 
     Parameters
@@ -126,6 +126,8 @@ def residual_evidence(model: MorphableModel, params: RenderParameter, image: np.
         Draws of the unit out-of-span field averaged for ``F1``.
     seed : int
         Seeds the draws.
+    exclude : (H, W) bool, optional
+        Pixels left out (what a robust fit found occluded: not out-of-span albedo).
 
     Returns
     -------
@@ -157,6 +159,8 @@ def residual_evidence(model: MorphableModel, params: RenderParameter, image: np.
     med = np.median(gain[mask], axis=0) if mask.any() else np.ones(3)
     ok = (binary_erosion(mask, iterations=EROSION) & np.all(target < 0.95, axis=-1)
           & np.all(gain > 0.25 * np.maximum(med, 1e-6), axis=-1))
+    if exclude is not None:
+        ok &= ~np.asarray(exclude, bool)
     adjacent = _pairs(ok)
     pairs = int(adjacent[0].sum() + adjacent[1].sum())
     if pairs < MIN_PAIRS:

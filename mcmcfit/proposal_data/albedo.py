@@ -61,11 +61,18 @@ class RenderAlbedoData:
     region : (H W,) bool array, optional
         Use only these pixels (the fixed region of a region likelihood,
         :class:`mcmcfit.targets.image.ImageLikelihood`); default: every face pixel.
+    weights : (H W,) float array, optional
+        Fixed per-pixel weights of the Gaussian system (a robust foreground's
+        face probabilities at the mode): each pixel's rows scaled by their
+        square root. Fixed, so the draw stays an exact MH proposal.
     """
 
     def __init__(self, renderer: Renderer, target_linear: np.ndarray, *,
-                 n_points: int = 4000, seed: int = 0, region: np.ndarray | None = None):
+                 n_points: int = 4000, seed: int = 0, region: np.ndarray | None = None,
+                 weights: np.ndarray | None = None):
         self.renderer = renderer
+        self._root_weights = None if weights is None else np.sqrt(
+            np.asarray(weights, np.float64).reshape(-1)).astype(np.float32)
         self._target = np.asarray(target_linear, np.float64).reshape(-1, 3)
         self._ok = unsaturated(self._target)
         if region is not None:
@@ -161,5 +168,10 @@ class RenderAlbedoData:
         if not np.array_equal(mat, np.eye(3, dtype=np.float32)):
             jac = np.einsum("cd,ndj->ncj", mat, jac)
             mean, bright = mean @ mat.T, bright @ mat.T
-        return albedo_system(jac, mean, bright, self._target[face].astype(np.float32), off,
-                             self._rank[face], face.size, weight, key)
+        target = self._target[face].astype(np.float32)
+        if self._root_weights is not None:  # rows scaled: the residual t - s r0 - o becomes
+            sw = self._root_weights[face][:, None]  # sw (t - s r0 - o), the clamp test kept
+            jac, mean = jac * sw[..., None], mean * sw
+            target = (target - off) * sw + off
+        return albedo_system(jac, mean, bright, target, off, self._rank[face], face.size, weight,
+                             key)

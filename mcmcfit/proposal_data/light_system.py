@@ -7,7 +7,9 @@ coefficient (:func:`albedo_model.render.light_basis.light_basis`) times the
 pixel's diffuse and specular albedo, reduced to the normal equations with the
 colour transform (:func:`proposals.light_conditional.light_system`). It
 depends on the blocks of ``STAGE_DEPS["light_system"]`` only (never on the
-light; a directional light enters as an offset), on whose version stamps it is kept.
+light; a directional light enters as an offset, or with ``directional`` as the
+(K+1)-th row of the transport, its strength drawn with the SH light), on whose
+version stamps it is kept.
 
 This module imports :mod:`albedo_model` (errors, render, shading.effects),
 :mod:`proposals` (light_conditional, base) and :mod:`mcmcfit.proposal_data.face_pixels`.
@@ -38,9 +40,19 @@ class RenderLightSystem:
         The linearised target image.
     region : (H W,) bool array, optional
         Use only these pixels (a region likelihood's); default: every face pixel.
+    weights : (H W,) float array, optional
+        Fixed per-pixel weights (a robust foreground's face probabilities at
+        the mode): each pixel's rows scaled by their square root.
+    directional : bool
+        Put a directional light's strength into the system (when its highlight
+        has its diffuse colour and every channel is positive); else it is an offset.
     """
 
-    def __init__(self, target_linear: np.ndarray, *, region: np.ndarray | None = None):
+    def __init__(self, target_linear: np.ndarray, *, region: np.ndarray | None = None,
+                 weights: np.ndarray | None = None, directional: bool = False):
+        self._directional = bool(directional)
+        self._root_weights = None if weights is None else np.sqrt(
+            np.asarray(weights, np.float64).reshape(-1))
         self._target = np.asarray(target_linear, np.float64).reshape(-1, 3)
         self._ok = unsaturated(self._target)
         if region is not None:
@@ -78,9 +90,20 @@ class RenderLightSystem:
         else:
             mat, off = np.eye(3), np.zeros(3)
         target = self._target[face] - off
-        if rs.effects.directional:  # its light is an offset: the state's transport minus the SH part
-            target = target - _directional_part(rs, at, rho, albedo, b, s) @ mat.T
-        return light_system(g, mat, target, key)
+        drawn = False
+        if rs.effects.directional:  # the state's transport minus the SH part
+            part = _directional_part(rs, at, rho, albedo, b, s)
+            strength = np.asarray(p.directional_light.diffuse, np.float64)
+            drawn = (self._directional and bool(np.all(strength > 0.0))
+                     and np.array_equal(strength, np.asarray(p.directional_light.specular)))
+            if drawn:  # linear in the strength: its unit transport is one more row of L
+                g = np.concatenate([g, (part / strength)[:, :, None]], axis=2)
+            else:  # an offset
+                target = target - part @ mat.T
+        if self._root_weights is not None:
+            sw = self._root_weights[face]
+            g, target = g * sw[:, None, None], target * sw[:, None]
+        return light_system(g, mat, target, key, directional=drawn)
 
 
 def _directional_part(rs: RenderState, at, rho, albedo, b, s) -> np.ndarray:

@@ -12,7 +12,7 @@ import numpy as np
 
 from albedo_model.errors import InputError
 
-__all__ = ["ColourHistogram", "colour_histogram"]
+__all__ = ["ColourHistogram", "colour_histogram", "occluder_log_density"]
 
 
 class ColourHistogram(NamedTuple):
@@ -135,3 +135,31 @@ def colour_histogram(colours: np.ndarray, *, bins: int = 25,
     r, g, b = h.bin_index(c)
     np.add.at(h.counts, (r, g, b), 1)
     return h
+
+
+def occluder_log_density(image: np.ndarray, outside: np.ndarray, *, bins: int = 25,
+                         sigma: float | None = None) -> np.ndarray:
+    """Log density (H, W) of every pixel's colour under the colours outside the face.
+
+    The robust foreground's occluder model: what covers a face (hair,
+    glasses, a hand, a scarf) is most likely coloured like something else in
+    the photograph, so its density is the histogram of the pixels outside the
+    face region (smoothed with ``sigma`` as the background is), not of the
+    whole image, where the face's own colours pile up and would make every
+    badly fitted skin pixel (a freckle, stubble) look like an occluder. With
+    fewer than 100 pixels outside, the whole image's histogram is used.
+
+    Parameters
+    ----------
+    image : (H, W, 3) float in [0, 1]
+        The target as compared (linear or encoded).
+    outside : (H, W) or (H W,) bool
+        Pixels outside the face region.
+    bins : int
+    sigma : float, optional
+        Noise the histogram is convolved with (:meth:`ColourHistogram.smoothed_log_density`).
+    """
+    img = np.asarray(image, np.float64)
+    out = np.asarray(outside, bool).reshape(img.shape[:2])
+    hist = colour_histogram(img, bins=bins, weights=out if out.sum() >= 100 else None)
+    return hist.log_density(img) if sigma is None else hist.smoothed_log_density(img, sigma)

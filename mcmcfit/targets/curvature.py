@@ -5,7 +5,8 @@ with ``region``) the image log likelihood is a sum of squared residuals,
 ``-sum_p ||I_p - R_p(x)||^2 / (2 sigma^2 T)``, a smooth function of the scene
 vector ``x`` (:class:`~albedo_model.scene_vector.SceneLayout`). Its gradient is
 ``J^T r / (sigma^2 T)`` and its Gauss-Newton precision ``J^T J / (sigma^2 T)``
-with ``J`` the pixel Jacobian (:class:`~albedo_model.render.jacobian.PixelJacobian`,
+(with a robust foreground each pixel's rows weighted by its probability of
+being the face) with ``J`` the pixel Jacobian (:class:`~albedo_model.render.jacobian.PixelJacobian`,
 at the triangles a ray cast at ``x`` sees). The landmark likelihood is a sum
 of squared pixel distances too (Gauss-Newton through a JAX projection of the
 landmark points, visibility held); the prior's gradient and precision are
@@ -21,7 +22,7 @@ the acceptance test, which always uses the exact ray-cast posterior.
 
 This module imports :mod:`albedo_model` (camera, errors, params, scene_vector,
 render.differentiable, render.jacobian, render.pixel_cast) and :mod:`mcmcfit.targets`
-(face, landmarks, priors).
+(face, landmarks, priors, robust_foreground).
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ from albedo_model.scene_vector import SceneLayout
 from mcmcfit.targets.face import FaceTarget
 from mcmcfit.targets.landmarks import LandmarkTarget
 from mcmcfit.targets.priors import PriorConfig, directional_prior
+from mcmcfit.targets.robust_foreground import face_weights, missed_value, readout_weights
 
 __all__ = ["Curvature", "PosteriorCurvature", "SceneCaster", "coordinate_gradient", "hits_at",
            "prior_curvature"]
@@ -209,18 +211,22 @@ class PosteriorCurvature:
                              np.zeros((self.layout.size, self.layout.size)), 0)
         colours, jac = self.jacobian.jacobian(p, hits_at(prim, pix, w, self._shadow(p, pix)))
         n = pix.size
-        r = (np.asarray(colours[:, :n], np.float64).T - self._target[pix]).reshape(-1)  # (3C,)
+        rgb = np.asarray(colours[:, :n], np.float64).T
+        r = (rgb - self._target[pix]).reshape(-1)  # (3C,)
         j = np.asarray(jac[:, :n], np.float64).transpose(1, 0, 2).reshape(-1, self.layout.size)
         scale = weight / (lik.sigma * lik.sigma * lik.temperature)
-        return Curvature(-scale * (j.T @ r), scale * (j.T @ j), int(pix.size))
+        face = face_weights(lik, pix, rgb, self._target[pix])
+        if face is not None:  # robust: each pixel weighted by its probability of being the face
+            face = np.repeat(face, 3)
+            return Curvature(-scale * (j.T @ (face * r)), scale * (j.T @ (face[:, None] * j)), n)
+        return Curvature(-scale * (j.T @ r), scale * (j.T @ j), n)
 
     def _shadow(self, params: RenderParameter, pixels: np.ndarray) -> np.ndarray | None:
         """Return the directional light's visibility at ``pixels`` (None without cast shadows)."""
         if not (self.jacobian.shadows and params.directional_light.enabled):
             return None
         r = self.target.renderer
-        return self.caster.shadow(params, pixels, rays=r.shadow_rays,
-                                  spread_deg=r.shadow_spread_deg)
+        return self.caster.shadow(params, pixels, rays=r.shadow_rays, spread_deg=r.shadow_spread_deg)
 
     def _landmark_arrays(self, factor: LandmarkTarget, params: RenderParameter):
         if self._landmark_inputs is None:
@@ -283,15 +289,18 @@ class PosteriorCurvature:
             target[:, :n] = self._target[pix].T
             self._region_target = jnp.asarray(target)
         hit = np.asarray(prim[pix] >= 0)
-        weight = np.zeros(c, np.float32)
-        weight[:n] = np.where(hit, 1.0 / (lik.sigma * lik.sigma * lik.temperature), 0.0)
-        value, grad = self.jacobian.gaussian_value_and_grad(p, hits, self._region_target,
-                                                            weight)
+        weight, outlier = readout_weights(lik, pix, hit, c)
+        if outlier is None:
+            value, grad = self.jacobian.gaussian_value_and_grad(p, hits, self._region_target,
+                                                                weight)
+        else:
+            value, grad = self.jacobian.robust_value_and_grad(
+                p, hits, self._region_target, weight, outlier, 1.0 / (lik.sigma * lik.sigma))
         missed = ~hit
         if missed.any():
             bg = np.asarray(self.target.renderer.background, np.float64)
-            d2 = np.sum((self._target[pix[missed]] - bg) ** 2)
-            value -= 0.5 * d2 / (lik.sigma * lik.sigma * lik.temperature)
+            d2 = np.sum((self._target[pix[missed]] - bg) ** 2, axis=1)
+            value += missed_value(lik, d2, None if outlier is None else outlier[:n][missed])
         return value, grad
 
     def value_and_gradient(self, params: RenderParameter,

@@ -55,6 +55,7 @@ from mcmcfit.targets.likelihoods import (
     region_terms,
     trimmed_terms,
 )
+from mcmcfit.targets.robust_foreground import robust_logs, robust_region_terms
 
 __all__ = [
     "IMAGE_LIKELIHOODS",
@@ -163,7 +164,8 @@ def prepare_image_target(image: np.ndarray, *, bins: int = 25,
 
 
 _DEVICE_FUNCTIONS = {"independent": independent_terms, "collective": collective_terms,
-                     "trimmed": trimmed_terms, "region": region_terms}
+                     "trimmed": trimmed_terms, "region": region_terms,
+                     "robust": robust_region_terms}
 
 
 def _on_pixel_set(terms):
@@ -216,6 +218,17 @@ class ImageLikelihood:
         jump whenever a silhouette pixel flips. ``kind`` must be "independent".
     background : (3,) float
         The renderer's colour of pixels without a hit (with ``region``).
+    outlier_probability : float in [0, 1), or (H W,) float array
+        With ``region``: the prior probability ``eps`` that a pixel shows
+        something the face model cannot explain (hair, glasses, a hand), one
+        for all pixels or one each. Each region pixel then scores
+        ``log((1 - eps) N(I; R, sigma^2) + eps h(I))``
+        (:func:`~mcmcfit.targets.robust_foreground.robust_region_terms`, ``h``
+        the background density); 0 is the plain Gaussian.
+    occluder : (H W,) float array, optional
+        The robust foreground's occluder log density ``log h(I)`` per pixel
+        (:func:`~mcmcfit.targets.background.occluder_log_density`); default: the
+        target's background density.
     """
 
     target: ImageTarget
@@ -226,6 +239,8 @@ class ImageLikelihood:
     temperature: float = 1.0
     region: np.ndarray | None = None
     background: tuple = (0.0, 0.0, 0.0)
+    outlier_probability: float | np.ndarray = 0.0
+    occluder: np.ndarray | None = None
     _fn: object = field(init=False, repr=False)
     _args: tuple = field(init=False, repr=False)
     _region_constants: tuple = field(init=False, repr=False)
@@ -241,6 +256,17 @@ class ImageLikelihood:
             raise InputError(f"trim fraction must be in (0, 1], got {self.trim_fraction!r}")
         if not (math.isfinite(self.temperature) and self.temperature >= 1.0):
             raise InputError(f"likelihood temperature must be >= 1, got {self.temperature!r}")
+        eps = np.asarray(self.outlier_probability, np.float64)
+        if eps.ndim not in (0, 1) or (eps.ndim == 1 and eps.size != self.target.height
+                                      * self.target.width):
+            raise InputError("outlier probability must be a number or one per image pixel, "
+                             f"got shape {eps.shape}")
+        if not np.all((eps >= 0.0) & (eps < 1.0)):
+            raise InputError("outlier probability must be in [0, 1), "
+                             f"got values in [{eps.min()}, {eps.max()}]")
+        if self.robust and self.region is None:
+            raise InputError("a robust foreground (outlier probability > 0) needs a fixed "
+                             "pixel region (the Gaussian sampler)")
         object.__setattr__(self, "_fn", _jitted(self.device_kind))
         # one device scalar for every call (a fresh jnp.float32 per step is a host->device copy)
         args = (self.target.arrays,) if self.kind == "collective" else (
@@ -259,6 +285,11 @@ class ImageLikelihood:
             miss = -np.sum((lin - np.asarray(self.background, np.float64)) ** 2, axis=1) * (
                 0.5 / (s32 * s32))
             args = args + (jnp.asarray(region.reshape(h, w)),)
+            if self.robust:
+                face_log, out_log = self.robust_logs()
+                miss = np.logaddexp(face_log + miss, out_log)
+                args = args + tuple(jnp.asarray(a.reshape(h, w), jnp.float32)
+                                    for a in (face_log, out_log))
             index = np.flatnonzero(region)
             constants = (int(index.size), index, miss[index])
         object.__setattr__(self, "_args", args)
@@ -267,7 +298,27 @@ class ImageLikelihood:
     @property
     def device_kind(self) -> str:
         """The device terms evaluated: ``kind``, or ``"region"`` with a fixed region."""
-        return "region" if self.region is not None else self.kind
+        if self.region is None:
+            return self.kind
+        return "robust" if self.robust else "region"
+
+    @property
+    def robust(self) -> bool:
+        """Whether the foreground is robust (some pixel's outlier probability above 0)."""
+        return bool(np.any(np.asarray(self.outlier_probability) > 0.0))
+
+    def robust_logs(self, pixels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Return the robust foreground's ``(face_log, out_log)`` at ``pixels`` (row-major; default all).
+
+        See :func:`~mcmcfit.targets.robust_foreground.robust_logs`; float64, host,
+        with the float32 sigma the device uses.
+        """
+        bg = np.asarray(self.target.arrays.bg if self.occluder is None else self.occluder,
+                        np.float64).reshape(-1)
+        eps = np.broadcast_to(np.asarray(self.outlier_probability, np.float64), bg.shape)
+        if pixels is not None:
+            bg, eps = bg[pixels], eps[pixels]
+        return robust_logs(float(np.float32(self.sigma)), eps, bg)
 
     @property
     def n_region(self) -> int:
@@ -313,7 +364,10 @@ class ImageLikelihood:
                 raise InputError("a region likelihood needs the ray cast's triangle ids")
             n_region, index, miss = self._region_constants
             missed = np.asarray(prim_id)[index] < 0
-            value = finish_region(rows, n_region, float(np.sum(miss[missed])), self.sigma)
+            miss_total = float(np.sum(miss[missed]))
+            value = (miss_total + float(np.sum(np.asarray(rows, np.float64)))
+                     if self.robust else
+                     finish_region(rows, n_region, miss_total, self.sigma))
         elif self.kind == "independent":
             value = finish_independent(rows, counts, self.sigma)
         elif self.kind == "collective":

@@ -23,7 +23,7 @@ sensor noise, ``A`` is about 1 and ``sigma`` the noise: the plain,
 well-specified likelihood. This is empirical Bayes (the scale is read off the
 data once, then held fixed for the kept draws), stated in ``summary.json``.
 
-This module imports only numpy.
+This module imports only numpy (and scipy.ndimage for the robust foreground).
 """
 
 from __future__ import annotations
@@ -33,12 +33,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["NoiseModel", "correlation_area", "estimate_noise", "fixed_noise"]
+__all__ = ["NoiseModel", "correlation_area", "estimate_noise", "fixed_noise", "robust_noise"]
 
 #: Floor of the estimated pixel sd (linear): half an 8-bit step of a mid-grey in
 #: linear units; a render that matches a noiseless image exactly must not make
 #: the likelihood infinitely sharp.
 MIN_SIGMA = 0.002
+
+#: Bounds of the robust foreground's per-pixel occlusion prior.
+MIN_OUTLIER, MAX_OUTLIER = 0.01, 0.95
+
+#: Scale (pixels) of the Gaussian blur that makes the occlusion prior smooth.
+SMOOTH_PX = 3.0
 
 
 class NoiseModel(NamedTuple):
@@ -55,7 +61,15 @@ class NoiseModel(NamedTuple):
     n_face : int
         Face pixels it was measured on (0 when fixed).
     n_effective : float
-        ``n_face / temperature`` (NaN when fixed).
+        ``n_face / temperature`` (NaN when fixed); with a robust foreground the
+        pixels' summed probabilities of being the face over the temperature.
+    outlier_probability : float
+        The robust foreground's probability that a pixel shows something the
+        face model cannot explain (0: the plain Gaussian likelihood); with a
+        map, its mean over the pixels measured.
+    outlier_map : (H W,) float32 array, optional
+        The robust foreground's occlusion prior per pixel (estimated; not in
+        :meth:`to_dict`).
     """
 
     sigma: float
@@ -63,6 +77,13 @@ class NoiseModel(NamedTuple):
     source: str = "fixed"
     n_face: int = 0
     n_effective: float = math.nan
+    outlier_probability: float = 0.0
+    outlier_map: np.ndarray | None = None
+
+    @property
+    def outlier_prior(self):
+        """What the image likelihood takes: the per-pixel map when there is one, else the number."""
+        return self.outlier_map if self.outlier_map is not None else self.outlier_probability
 
     def to_dict(self) -> dict:
         """Plain JSON-able dict, with the rule in words (``summary.json``)."""
@@ -72,15 +93,24 @@ class NoiseModel(NamedTuple):
                 "area of the residuals (pixels per independent residual); held fixed for the "
                 "kept draws" if self.source == "estimated" else
                 "sigma and temperature given by the configuration")
+        if self.outlier_probability > 0.0:
+            rule += ("; robust foreground: each pixel is the face (Gaussian) or, with "
+                     "probability outlier_probability, an occluder (the image's colour density)"
+                     + (", sigma and a smooth per-pixel occlusion prior (blur 3 px) by EM on "
+                        "the residuals; outlier_probability is its mean over the region"
+                        if self.source == "estimated" else ""))
         out = self._asdict()
+        del out["outlier_map"]
         out["rule"] = rule
         return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
                 for k, v in out.items()}
 
 
-def fixed_noise(sigma: float, temperature: float) -> NoiseModel:
-    """Return the noise model of given ``sigma`` and ``temperature`` (not measured)."""
-    return NoiseModel(float(sigma), float(temperature), "fixed")
+def fixed_noise(sigma: float, temperature: float,
+                outlier_probability: float = 0.0) -> NoiseModel:
+    """Return the noise model of given ``sigma``, ``temperature`` and outlier probability."""
+    return NoiseModel(float(sigma), float(temperature), "fixed",
+                      outlier_probability=float(outlier_probability))
 
 
 def _autocorrelation(field: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -151,8 +181,64 @@ def correlation_area(residual: np.ndarray, mask: np.ndarray, *, max_radius: int 
     return float(max(1.0, sums[:cut].sum()))
 
 
+def robust_noise(residual: np.ndarray, background: np.ndarray, mask: np.ndarray, *,
+                 min_sigma: float = MIN_SIGMA, start: float = 0.05, smooth_px: float = SMOOTH_PX,
+                 iterations: int = 100) -> tuple[float, np.ndarray, np.ndarray]:
+    """EM for the robust foreground: ``(sigma, occlusion prior (H, W), face probability (H, W))``.
+
+    Each mask pixel's residual comes from the face, ``N(0, sigma^2 I_3)``, or
+    with probability ``eps_p`` from an occluder of colour density
+    ``exp(background)``. EM alternates the pixels' face probabilities ``f_p``
+    with ``sigma^2 = sum f d2 / (3 sum f)`` and the occlusion prior
+    ``eps = G * (1 - f) / G * 1`` (a Gaussian blur of ``smooth_px`` over the
+    mask, normalised): occluders are coherent regions, so a pixel's prior is its
+    neighbourhood's share of occluders (a smoothness prior in the spirit of
+    Egger et al. 2018's segmentation), and an isolated badly fitted pixel
+    (a mole, a misfit highlight) among face pixels stays face. ``eps`` is kept
+    within [:data:`MIN_OUTLIER`, :data:`MAX_OUTLIER`]; off the mask it is the
+    mask's mean.
+
+    Parameters
+    ----------
+    residual : (H, W, 3) float
+        Target minus render.
+    background : (H, W) float
+        The target's background log density.
+    mask : (H, W) bool
+        The pixels that take part (the likelihood's region).
+    """
+    from scipy.ndimage import gaussian_filter
+
+    m = np.asarray(mask, bool)
+    d2 = np.sum(np.asarray(residual, np.float64)[m] ** 2, axis=1)
+    bg = np.asarray(background, np.float64)[m]
+    weight = gaussian_filter(m.astype(np.float64), smooth_px)
+    eps = np.full(d2.shape, float(np.clip(start, MIN_OUTLIER, MAX_OUTLIER)))
+    var = max(min_sigma ** 2, float(np.mean(d2)) / 3.0) if d2.size else min_sigma ** 2
+    face = np.ones_like(d2)
+    for _ in range(iterations):
+        log_face = np.log1p(-eps) - 1.5 * math.log(2.0 * math.pi * var) - d2 / (2.0 * var)
+        face = np.exp(log_face - np.logaddexp(log_face, np.log(eps) + bg))
+        new_var = max(min_sigma ** 2, float(np.sum(face * d2) / max(3.0 * np.sum(face), 1e-12)))
+        out = np.zeros(m.shape)
+        out[m] = 1.0 - face
+        new_eps = np.clip(gaussian_filter(out, smooth_px)[m] / np.maximum(weight[m], 1e-12),
+                          MIN_OUTLIER, MAX_OUTLIER)
+        done = abs(new_var - var) <= 1e-6 * var and float(np.max(np.abs(new_eps - eps),
+                                                                  initial=0.0)) <= 1e-4
+        var, eps = new_var, new_eps
+        if done:
+            break
+    prior = np.full(m.shape, float(eps.mean()) if eps.size else MIN_OUTLIER)
+    prior[m] = eps
+    probability = np.ones(m.shape)
+    probability[m] = face
+    return math.sqrt(var), prior, probability
+
+
 def estimate_noise(target: np.ndarray, render: np.ndarray, mask: np.ndarray, *,
-                   usable: np.ndarray | None = None, min_sigma: float = MIN_SIGMA) -> NoiseModel:
+                   usable: np.ndarray | None = None, min_sigma: float = MIN_SIGMA,
+                   background: np.ndarray | None = None) -> NoiseModel:
     """Measure the likelihood's scale from one render: RMS residual and correlation area.
 
     Parameters
@@ -165,6 +251,11 @@ def estimate_noise(target: np.ndarray, render: np.ndarray, mask: np.ndarray, *,
         Target pixels that may be used (e.g. not clipped by the camera).
     min_sigma : float
         Floor of the returned sigma.
+    background : (H, W) float array, optional
+        The target's background log density: a robust foreground's occluder
+        density. Then sigma and the outlier probability come from
+        :func:`robust_noise`, and the correlation area from the pixels more
+        likely the face than not.
 
     Returns
     -------
@@ -178,6 +269,11 @@ def estimate_noise(target: np.ndarray, render: np.ndarray, mask: np.ndarray, *,
     if n == 0:
         raise ValueError("estimate_noise: no face pixel to measure the residual on")
     res = np.asarray(target, np.float64) - np.asarray(render, np.float64)
+    if background is not None:
+        sigma, prior, face = robust_noise(res, background, m, min_sigma=min_sigma)
+        area = correlation_area(res, m & (face > 0.5))
+        return NoiseModel(sigma, area, "estimated", n, float(face[m].sum()) / area,
+                          float(prior[m].mean()), prior.reshape(-1).astype(np.float32))
     sigma = max(float(min_sigma), float(np.sqrt(np.mean(res[m] ** 2))))
     area = correlation_area(res, m)
     return NoiseModel(sigma, area, "estimated", n, n / area)

@@ -81,3 +81,21 @@ def synthetic_target(model: MorphableModel, params: RenderParameter, *, backgrou
     img = np.where(out.mask[..., None], img, background)
     names, px, vis = r.landmarks(out.state)
     return img, {n: q for n, q, ok in zip(names, px, vis) if ok}
+
+
+def random_lit_face(model: MorphableModel, rng: np.random.Generator, size: int, *,
+                    yaw: float, pitch: float, noise: float = 0.01):
+    """A random face (4 shape, 3 albedo, 2 expression coefficients) under a perturbed frontal SH light.
+
+    Returns ``(truth, image, clicked)``: the scene, its diffuse render with
+    Gaussian noise of sd ``noise`` (gamma-encoded, clipped) and the visible
+    projected landmarks.
+    """
+    from albedo_model.params import SHLight
+
+    truth = scene(size, size, yaw=yaw, pitch=pitch, coefficients=MoMoCoefficients(
+        rng.normal(size=4), rng.normal(size=3), rng.normal(0, 0.7, 2)))
+    truth = truth._replace(environment_map=SHLight(SHLight.frontal().coefficients
+                                                   + rng.normal(0, 0.03, (9, 3))))
+    image, clicked = synthetic_target(model, truth, specular=False)
+    return truth, np.clip(image + rng.normal(0, noise, image.shape), 0, 1), clicked

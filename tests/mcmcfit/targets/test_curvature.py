@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from face_factory import scene, small_face_model, synthetic_target
+from face_factory import random_lit_face, small_face_model
 
-from albedo_model.params import ImageSize, MoMoCoefficients, SHLight
+from albedo_model.params import ImageSize, SHLight
 from albedo_model.render.region import contour_jump, interior_region
 from albedo_model.render.renderer import Renderer
 from albedo_model.scene_vector import SceneLayout
@@ -34,12 +34,7 @@ SIGMA = 0.03
 def problem():
     model = small_face_model(subdivisions=4)
     rng = np.random.default_rng(5)
-    truth = scene(SIZE, SIZE, yaw=0.15, pitch=-0.05, coefficients=MoMoCoefficients(
-        rng.normal(size=4), rng.normal(size=3), rng.normal(0, 0.7, 2)))
-    truth = truth._replace(environment_map=SHLight(SHLight.frontal().coefficients
-                                                   + rng.normal(0, 0.03, (9, 3))))
-    image, clicked = synthetic_target(model, truth, specular=False)
-    image = np.clip(image + rng.normal(0, 0.01, image.shape), 0, 1)
+    truth, image, clicked = random_lit_face(model, rng, SIZE, yaw=0.15, pitch=-0.05)
     renderer = Renderer(model, specular=False, threads=1)
     base = renderer.render(truth)
     region = interior_region(base.state.prim_id, base.state.hits.t, SIZE, SIZE, erode=2,
