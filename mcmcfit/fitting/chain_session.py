@@ -50,7 +50,7 @@ from mcmcfit.proposal_data.albedo import RenderAlbedoData
 from mcmcfit.proposal_data.face_pixels import unsaturated
 from mcmcfit.proposal_data.light import RenderLightData
 from mcmcfit.proposal_data.light_system import RenderLightSystem
-from mcmcfit.targets.robust_foreground import robust_responsibilities
+from mcmcfit.targets.robust_foreground import face_weights
 from mcmcfit.sampling.chain import ChainRecord, ChainRecorder, ChainResult
 from mcmcfit.sampling.kernel import ChainState, init
 from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster, coordinate_gradient
@@ -152,10 +152,8 @@ class ChainSession(EffectPhases, GaussianPhases):
         if lik is None or not lik.robust or getattr(self, "mode", None) is None:
             return None
         out = self.posterior.renderer.render(self.mode.params)
-        face_log, out_log = lik.robust_logs()
-        return robust_responsibilities(np.asarray(out.image, np.float64).reshape(-1, 3),
-                                       lik.target.linear.reshape(-1, 3), face_log, out_log,
-                                       lik.sigma)
+        return face_weights(lik, None, np.asarray(out.image, np.float64).reshape(-1, 3),
+                            lik.target.linear.reshape(-1, 3))
 
     def _build_proposal(self) -> None:
         cfg, post = self.cfg, self.posterior

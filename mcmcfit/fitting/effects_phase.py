@@ -12,7 +12,7 @@ With a robust foreground, the pixels more likely an occluder than the face at
 the mode are left out of the evidence.
 
 This module imports :mod:`mcmcfit.fitting` (effects_choice, gaussian_stage),
-:mod:`mcmcfit.sampling.kernel` and :mod:`mcmcfit.targets` (background, robust_foreground).
+:mod:`mcmcfit.sampling.kernel` and :mod:`mcmcfit.targets.robust_foreground`.
 """
 
 from __future__ import annotations
@@ -25,8 +25,7 @@ import numpy as np
 from mcmcfit.fitting.effects_choice import SCREEN_RATIO, directional_evidence, with_directional
 from mcmcfit.fitting.gaussian_stage import sampling_coordinates
 from mcmcfit.sampling.kernel import init
-from mcmcfit.targets.background import occluder_log_density
-from mcmcfit.targets.robust_foreground import robust_logs, robust_responsibilities
+from mcmcfit.targets.robust_foreground import face_weights
 
 __all__ = ["EffectPhases"]
 
@@ -80,16 +79,11 @@ class EffectPhases:
 
     def _occluded(self, params, region, noise):
         """Region pixels the robust foreground thinks more likely an occluder than the face (H W,)."""
-        target = self.posterior.image_target
+        lik = self._region_posterior(region, noise).face.image_likelihood  # the fit's own
         out = self.posterior.renderer.render(params)
         pix = np.flatnonzero(np.asarray(region, bool).reshape(-1))
-        eps = np.broadcast_to(np.asarray(noise.outlier_prior, np.float64), (np.size(region),))
-        occluder = occluder_log_density(target.linear, ~np.asarray(region, bool),
-                                        bins=self.cfg.bins, sigma=noise.sigma)
-        face_log, out_log = robust_logs(noise.sigma, eps[pix], occluder.reshape(-1)[pix])
-        face = robust_responsibilities(np.asarray(out.image, np.float64).reshape(-1, 3)[pix],
-                                       target.linear.reshape(-1, 3)[pix], face_log, out_log,
-                                       noise.sigma)
+        face = face_weights(lik, pix, np.asarray(out.image, np.float64).reshape(-1, 3)[pix],
+                            lik.target.linear.reshape(-1, 3)[pix])
         occluded = np.zeros(np.size(region), bool)
         occluded[pix] = face < 0.5
         return occluded.reshape(np.shape(region))

@@ -110,11 +110,11 @@ def robust_responsibilities(colours: np.ndarray, target: np.ndarray, face_log: n
 
 
 
-def face_weights(lik, pixels: np.ndarray, colours: np.ndarray,
+def face_weights(lik, pixels: np.ndarray | None, colours: np.ndarray,
                  target: np.ndarray) -> np.ndarray | None:
     """Each of ``pixels``' probability of being the face (N,), or None for a Gaussian foreground.
 
-    ``pixels`` row-major indices; ``colours``, ``target`` (N, 3) linear.
+    ``pixels`` row-major indices (None: every pixel); ``colours``, ``target`` (N, 3) linear.
     """
     if not lik.robust:
         return None
