@@ -127,7 +127,8 @@ def estimate_residual_scale(result: FitResult, model: MorphableModel,
     exclude = list(exclude) if exclude is not None else [None] * len(images)
     evidence = [residual_evidence(model, p, im, diffuse, specular=specular,
                                   render_specular=bool(result.config.specular),
-                                  seed=int(result.seed), exclude=ex)
+                                  seed=int(result.seed), exclude=ex,
+                                  shadows=getattr(result.config, "effects", "sh") != "sh")
                 for p, im, ex in zip(scenes, images, exclude)]
     scale = residual_scale(evidence)
     return {"scale_rgb": None if scale is None else [float(v) for v in scale],

@@ -107,7 +107,8 @@ def _field_model(model: MorphableModel, diffuse: np.ndarray, specular: np.ndarra
 def residual_evidence(model: MorphableModel, params: RenderParameter, image: np.ndarray,
                       diffuse: np.ndarray, *, specular: np.ndarray | None = None,
                       render_specular: bool = True, draws: int = 4,
-                      seed: int = 0, exclude: np.ndarray | None = None) -> ResidualEvidence | None:
+                      seed: int = 0, exclude: np.ndarray | None = None,
+                      shadows: bool = False) -> ResidualEvidence | None:
     """Measure a photograph's albedo-space residual at the posterior mean (see the module notes).
 
     Parameters
@@ -128,6 +129,10 @@ def residual_evidence(model: MorphableModel, params: RenderParameter, image: np.
         Seeds the draws.
     exclude : (H, W) bool, optional
         Pixels left out (what a robust fit found occluded: not out-of-span albedo).
+    shadows : bool
+        Cast the directional light's shadows (and scale its highlight by the
+        specular albedo), as the fit's image model did: else the shadows the
+        fit explained would count as out-of-span albedo.
 
     Returns
     -------
@@ -143,7 +148,8 @@ def residual_evidence(model: MorphableModel, params: RenderParameter, image: np.
     fields = np.column_stack([np.full(3 * n, _BUMP)]
                              + [rng.standard_normal(3 * n) * sd for _ in range(draws)])
     renderer = Renderer(_field_model(model, np.asarray(diffuse, np.float64), specular, fields),
-                        specular=render_specular and model.specular is not None)
+                        specular=render_specular and model.specular is not None,
+                        shadows=shadows, directional_specular_map=True)
 
     def render(j: int | None):
         c = np.zeros(fields.shape[1])
