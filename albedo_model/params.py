@@ -38,10 +38,15 @@ class Block(enum.Flag):
     LIGHT = enum.auto()
     COLOR_TRANSFORM = enum.auto()
     SPECULAR_EXPONENT = enum.auto()
-    DIRECTIONAL = enum.auto()
+    #: The directional light's direction (sampled as azimuth and elevation): its cast shadows
+    #: depend on it, not on its strength.
+    DIRECTIONAL_ANGLES = enum.auto()
+    #: The directional light's RGB strengths (ambient, diffuse, specular) and shininess.
+    DIRECTIONAL_STRENGTH = enum.auto()
 
     GEOMETRY = SHAPE | EXPRESSION
     RAYS = POSE | CAMERA
+    DIRECTIONAL = DIRECTIONAL_ANGLES | DIRECTIONAL_STRENGTH
     ALL = (SHAPE | EXPRESSION | POSE | CAMERA | ALBEDO | LIGHT | COLOR_TRANSFORM | SPECULAR_EXPONENT
            | DIRECTIONAL)
 

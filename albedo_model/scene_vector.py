@@ -120,8 +120,13 @@ class SceneLayout(NamedTuple):
             strength = floats("light_intensity")
             if not (abs(az) < np.pi and abs(el) < 0.5 * np.pi):
                 strength = (np.nan,) * 3  # outside the angles' chart: the prior rejects it
-            p = p._replace(directional_light=DirectionalLight.from_angles(
-                az, el, strength, shininess=p.directional_light.shininess))
+            light = DirectionalLight.from_angles(az, el, strength,
+                                                 shininess=p.directional_light.shininess)
+            if (az, el) == p.directional_light.angles():
+                # the same angles keep the very direction vector (not its round trip through
+                # the angles), so a strength move leaves the cast shadows' block untouched
+                light = light._replace(direction=p.directional_light.direction)
+            p = p._replace(directional_light=light)
         return p._replace(
             pose=p.pose._replace(yaw=a[0], pitch=a[1], roll=a[2], translation=t),
             camera=p.camera._replace(focal_length=float(s["focal_length"][0]),

@@ -16,9 +16,10 @@ casting only when pose, camera or geometry moved).
 ``Block`` -> :class:`~albedo_model.params.RenderParameter` fields:
 POSE -> ``pose``; CAMERA -> ``camera``; SHAPE -> ``momo.shape``;
 EXPRESSION -> ``momo.expression``; ALBEDO -> ``momo.albedo`` (shared diffuse and
-specular coefficients); LIGHT -> ``environment_map``; DIRECTIONAL ->
-``directional_light`` (its direction and strength: a move of it alone re-casts
-only the shadow rays); COLOR_TRANSFORM -> ``color_transform``; SPECULAR_EXPONENT -> ``specular_exponent``.
+specular coefficients); LIGHT -> ``environment_map``; DIRECTIONAL_ANGLES ->
+``directional_light.direction`` (a move of it alone re-casts only the shadow
+rays); DIRECTIONAL_STRENGTH -> the rest of ``directional_light`` (casts no ray;
+DIRECTIONAL is both); COLOR_TRANSFORM -> ``color_transform``; SPECULAR_EXPONENT -> ``specular_exponent``.
 ``view`` and ``image_size`` are never proposed.
 
 This module imports only :mod:`albedo_model.errors` and :mod:`albedo_model.params`.

@@ -18,7 +18,8 @@ proposal whose mean and precision do not depend on ``L``, so the exact ratio is
 corrects what the clamp leaves. With a directional light whose highlight has the
 colour of its diffuse term (the fit's), the render is affine in its RGB
 strength too: :class:`LightSystem` ``directional`` adds it as a (K+1)-th row of
-``L`` and the move draws both (touching ``Block.LIGHT | Block.DIRECTIONAL``).
+``L`` and the move draws both (touching ``Block.LIGHT | Block.DIRECTIONAL_STRENGTH``:
+the direction, and so the cast shadows, stay).
 
 This module imports only :mod:`albedo_model.params`, :mod:`albedo_model.render.cache_table`
 and :mod:`proposals` (albedo_solver, base).
@@ -129,7 +130,7 @@ class LightConditional:
     prior_sd: np.ndarray
     sigma: float = 0.043
     name: str = "light-conditional"
-    touches: ClassVar[Block] = Block.LIGHT | Block.DIRECTIONAL
+    touches: ClassVar[Block] = Block.LIGHT | Block.DIRECTIONAL_STRENGTH
     _factorisation: Kept = field(default_factory=Kept, repr=False)
 
     def __post_init__(self) -> None:
@@ -167,4 +168,4 @@ class LightConditional:
         strength = tuple(float(v) for v in new[L.size:])
         moved = moved._replace(directional_light=light._replace(diffuse=strength,
                                                                 specular=strength))
-        return Move(moved, ratio, Block.LIGHT | Block.DIRECTIONAL, self.name, joint=True)
+        return Move(moved, ratio, Block.LIGHT | Block.DIRECTIONAL_STRENGTH, self.name, joint=True)

@@ -29,7 +29,7 @@ albedo              ALBEDO                                       albedo instance
 effects             LIGHT, DIRECTIONAL, COLOR_TRANSFORM          the effect set
 shading             POSE, LIGHT, DIRECTIONAL, COLOR_TRANSFORM,   packed shading scalars
                     SPEC. EXP.
-shadow              raycast + DIRECTIONAL                        cast shadows (a shadow ray
+shadow              raycast + DIRECTIONAL_ANGLES                 cast shadows (a shadow ray
                                                                  per face pixel)
 light               raycast + LIGHT, DIRECTIONAL, SPEC. EXP.     per-pixel light transport
 landmarks           geometry + rays                              landmark log likelihood
@@ -43,6 +43,11 @@ light_system        raycast + ALBEDO, COLOR_TRANSFORM,           the render, lin
                     SPECULAR_EXPONENT, DIRECTIONAL               SH light (the directional
                                                                  light an offset)
 ==================  ===========================================  =======================
+
+DIRECTIONAL is the directional light's two blocks, DIRECTIONAL_ANGLES (its
+direction) and DIRECTIONAL_STRENGTH: only the cast shadows depend on the
+direction alone, so a move of the light's strength (the SH light's exact
+conditional, which draws it with the SH light) casts no shadow ray.
 
 This module imports only :mod:`albedo_model.params`.
 """
@@ -70,7 +75,7 @@ STAGE_DEPS: dict[str, Block] = {
     "albedo": Block.ALBEDO,
     "effects": Block.LIGHT | _DIR | Block.COLOR_TRANSFORM,
     "shading": Block.POSE | Block.LIGHT | _DIR | Block.COLOR_TRANSFORM | Block.SPECULAR_EXPONENT,
-    "shadow": _GEOMETRY | _RAYS | _DIR,
+    "shadow": _GEOMETRY | _RAYS | Block.DIRECTIONAL_ANGLES,
     "light": _GEOMETRY | _RAYS | Block.LIGHT | _DIR | Block.SPECULAR_EXPONENT,
     "landmarks": _GEOMETRY | _RAYS,
     "albedo_bases": _GEOMETRY | _RAYS,

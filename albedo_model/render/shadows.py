@@ -4,8 +4,9 @@ A state's shadow is the visibility of the directional light at its pixel set
 (:func:`~albedo_model.render.visibility.directional_visibility`: one occlusion
 ray per face pixel, a few for a soft edge, against the scene the state's
 geometry lives in). It is keyed on the ``shadow`` row of :data:`~albedo_model.render.cache_table.STAGE_DEPS`
-(geometry, pose, camera, directional light): an SH light, albedo or colour move
-reuses the shadow of the state it starts from, a light-direction move re-casts
+(geometry, pose, camera, the directional light's direction): an SH light,
+albedo, colour or directional-strength move reuses the shadow of the state it
+starts from, a light-direction move re-casts
 only the shadow rays (no primary ray, no BVH work), and an effect set without
 shadows casts none.
 

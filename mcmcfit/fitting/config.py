@@ -107,6 +107,13 @@ class FitConfig:
         anchors are the vertices the region sees at the mode). Straightens the
         curved focal-length/distance/size ridge the Laplace approximation
         cannot follow. Perspective cameras only (ignored for orthographic ones).
+    metric : {"gauss-newton", "hessian"}
+        Gaussian sampler: the approximation the moves whiten with.
+        ``"gauss-newton"`` (the default) is the Laplace approximation of the
+        climb; ``"hessian"`` widens it where the posterior's Hessian, by
+        central differences of its exact gradient at +-1 sd, is flatter
+        (:mod:`mcmcfit.fitting.curvature_widening`; 2 d gradient evaluations
+        per chain, ~12 s). Off by default: it did not mix better (README).
     widen : bool
         Gaussian sampler: at 60 % of the warm-up, widen the Laplace
         approximation the moves whiten with along the (at most 4) directions
@@ -271,6 +278,7 @@ class FitConfig:
     hmc_leapfrog: int = 3
     hmc_triangles: str = "cast"
     image_size: bool = True
+    metric: str = "gauss-newton"
     widen: bool = False
     widen_at: int = 0
     stop_when_converged: bool = True

@@ -49,7 +49,8 @@ def check_config(cfg) -> None:
                "background": ("smoothed", "histogram"),
                "init_pose": ("lsq", "similarity"), "init_light": ("solve", "frontal"),
                "noise": ("estimated", "fixed"), "sampler": ("gaussian", "reference", "random-walk"),
-               "hmc_triangles": ("cast", "mode"), "effects": ("auto", "sh", "sh+directional"),
+               "hmc_triangles": ("cast", "mode"), "metric": ("gauss-newton", "hessian"),
+               "effects": ("auto", "sh", "sh+directional"),
                "foreground": ("gaussian", "robust")}
     for name, allowed in choices.items():
         if getattr(cfg, name) not in allowed:

@@ -301,6 +301,7 @@ def _prepare_gaussian(pool, cfg: FitConfig, stopping: dict) -> NoiseModel:
     stopping["mode"] = {"climb_scores": [c["score"] for c in climbs],
                         "climb_traces": [c["trace"] for c in climbs], "rounds": rounds,
                         "dimension": prepared[0]["dimension"],
+                        "metric": [p.get("metric") for p in prepared],
                         "seconds": time.perf_counter() - t0}
     return noise
 

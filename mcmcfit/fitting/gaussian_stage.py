@@ -14,18 +14,17 @@ them; the driver, :mod:`mcmcfit.fitting.fit`, calls them in lockstep):
 3. :meth:`~GaussianPhases.prepare_gaussian` -- the sampling coordinates
    (with ``image_size``: the face's log image size in place of the log focal
    length, anchored at the vertices the region sees at the mode), the Laplace
-   approximation at the mode, the moves built on it, the chain started from a
-   draw of it;
+   approximation at the mode (with ``metric="hessian"`` widened where the
+   posterior's curvature is flatter: :mod:`mcmcfit.fitting.curvature_widening`),
+   the moves built on it, the chain started from a draw of it;
 4. optionally (``widen``), during the warm-up, :meth:`~GaussianPhases.warmup_draws`
    and :meth:`~GaussianPhases.widen` -- the approximation widened where the
    chains' warm-up draws are wider (:mod:`proposals.laplace.widening`).
 
 Helpers:
 
-* :func:`recentred` moves the principal point of a landmark fit to the image
-  centre and compensates with the translation (the landmark stage's
-  image-centred moves shift the principal point; the Gaussian moves hold it,
-  :data:`proposals.laplace.coordinates.HELD`).
+* :func:`recentred` moves a landmark fit's principal point to the image centre,
+  compensated by the translation (the Gaussian moves hold it).
 * :func:`sampling_coordinates` are the Gaussian moves' coordinates of a fit.
 * :func:`region_and_noise` measures the likelihood's scale over a pixel region
   at some parameters (:func:`mcmcfit.targets.noise_model.estimate_noise` on the
@@ -47,6 +46,7 @@ from albedo_model.camera import pixel_scale, to_eye
 from albedo_model.params import RenderParameter
 from albedo_model.render.renderer import Renderer
 from albedo_model.scene_vector import SceneLayout
+from mcmcfit.fitting.curvature_widening import curvature_widened, gradient_in_coordinates
 from mcmcfit.fitting.mode import ModeResult, find_mode, laplace, region_of
 from mcmcfit.fitting.problem import build_posterior, provisional_noise
 from mcmcfit.proposal_data.face_pixels import unsaturated
@@ -368,11 +368,7 @@ class GaussianPhases(DrawPhases):
         """Fit the Laplace approximation at the mode, build the moves, start from a draw of it.
 
         With ``sampler="reference"`` the random-walk schedule starts from the mode instead.
-
-        Returns
-        -------
-        dict
-            ``log_density`` of the start; ``dimension`` of the coordinates.
+        Returns ``log_density`` of the start, ``dimension`` and ``metric`` (the widening's record).
         """
         if self.cfg.sampler == "reference":  # the random walks from the mode, no approximation
             self._build_proposal()
@@ -387,10 +383,17 @@ class GaussianPhases(DrawPhases):
                                       curvature.region_triangles(mode))
             self.coords = sampling_coordinates(
                 mode, scale=ImageScale.of_model(self.problem.model, mode, anchors))
+            self._hmc_gradient = None  # a function of the coordinates just replaced
         self.approx = laplace(curvature, self.coords, mode)
+        metric = None
+        if self.cfg.metric == "hessian":
+            self.approx, metric = curvature_widened(
+                gradient_in_coordinates(self._coordinate_gradient(), self.coords, mode),
+                self.approx, self.coords.u_of(mode))
         self._build_proposal()
-        start = self.coords.params_of(self.approx.draw(self.rng), self.mode.params)
+        start = self.coords.params_of(self.approx.draw(self.rng), mode)
         self.state = init(start, self.posterior.face, image=True)
         if not np.isfinite(self.state.log_posterior):
-            self.state = init(self.mode.params, self.posterior.face, image=True)
-        return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size}
+            self.state = init(mode, self.posterior.face, image=True)
+        return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size,
+                "metric": metric}

@@ -61,8 +61,8 @@ _BLOCK_OF = {"shape": Block.SHAPE, "expression": Block.EXPRESSION, "angles": Blo
              "principal_point": Block.CAMERA, "light": Block.LIGHT,
              "gain": Block.COLOR_TRANSFORM, "contrast": Block.COLOR_TRANSFORM,
              "offset": Block.COLOR_TRANSFORM, "specular_exponent": Block.SPECULAR_EXPONENT,
-             "albedo": Block.ALBEDO, "light_angles": Block.DIRECTIONAL,
-             "light_intensity": Block.DIRECTIONAL}
+             "albedo": Block.ALBEDO, "light_angles": Block.DIRECTIONAL_ANGLES,
+             "light_intensity": Block.DIRECTIONAL_STRENGTH}
 
 
 def entry_blocks() -> dict[str, Block]:

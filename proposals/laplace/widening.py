@@ -21,6 +21,14 @@ dimensions would be mostly noise.
 Used once, during the warm-up; the approximation is then frozen for the kept
 draws, so the kept chain stays time-homogeneous.
 
+:func:`widened_by_curvature` widens it before any draw, from the posterior's
+own curvature averaged over about one sd around the mode (a Hessian by
+central differences of the exact gradient, in the same whitened
+coordinates): a Gauss-Newton precision drops the residuals' second-order
+term, which a model that does not span the photograph (a held-out face: large,
+structured residuals) makes negative along a few directions, so there the
+posterior is many times wider than the approximation.
+
 This module imports :mod:`albedo_model.errors` and :mod:`proposals.laplace.moves`.
 """
 
@@ -34,7 +42,8 @@ import numpy as np
 from albedo_model.errors import InputError
 from proposals.laplace.moves import GaussianApproximation
 
-__all__ = ["MAX_DIRECTIONS", "MAX_RATIO", "Widening", "widened_by_draws"]
+__all__ = ["CURVATURE_MAX_RATIO", "MAX_DIRECTIONS", "MAX_RATIO", "Widening", "widened_by_curvature",
+           "widened_by_draws"]
 
 #: At most this many directions are widened.
 MAX_DIRECTIONS = 4
@@ -42,6 +51,9 @@ MAX_DIRECTIONS = 4
 MAX_RATIO = 9.0
 #: A direction is widened only when its ratio exceeds this factor times the noise edge.
 MARGIN = 1.2
+#: :func:`widened_by_curvature` caps a direction's variance ratio here (flat or negative
+#: curvature: the prior, not the mode's neighbourhood, bounds the posterior there).
+CURVATURE_MAX_RATIO = 25.0
 
 
 class Widening(NamedTuple):
@@ -117,9 +129,59 @@ def widened_by_draws(approx: GaussianApproximation, draws: list[np.ndarray] | np
         return Widening(approx, np.zeros(0), np.zeros((d, 0)), float(values[-1]), edge, n)
     ratios = np.minimum(values[keep], MAX_RATIO)
     v = vectors[:, keep]
+    return Widening(_widened(approx, ratios, v), ratios, v, float(values[-1]), edge, n)
+
+
+def _widened(approx: GaussianApproximation, ratios: np.ndarray,
+             v: np.ndarray) -> GaussianApproximation:
+    """Return ``approx`` with variance ratios ``ratios`` along the whitened unit vectors ``v``."""
     # Covariance L (I + V (r - 1) V^T) L^T; its precision is
     # P + L^-T V (1/r - 1) V^T L^-1 with P = L^-T L^-1 the approximation's.
     w = np.linalg.solve(approx.chol_cov.T, v)  # L^-T V
     precision = approx.precision + (w * (1.0 / ratios - 1.0)) @ w.T
-    return Widening(GaussianApproximation(approx.mean, 0.5 * (precision + precision.T)), ratios,
-                    v, float(values[-1]), edge, n)
+    return GaussianApproximation(approx.mean, 0.5 * (precision + precision.T))
+
+
+def widened_by_curvature(approx: GaussianApproximation, whitened_precision: np.ndarray, *,
+                         max_ratio: float = CURVATURE_MAX_RATIO) -> Widening:
+    """Return ``approx`` widened along the directions where the posterior is flatter than it.
+
+    Parameters
+    ----------
+    approx : GaussianApproximation
+        ``N(m, L L^T)`` in the sampling coordinates.
+    whitened_precision : (d, d) array
+        The posterior's negative Hessian in the whitened coordinates
+        ``z = L^-1 (u - m)`` (the identity where the posterior is the
+        approximation), e.g. by central differences of its gradient.
+    max_ratio : float > 1
+        Cap of a direction's variance ratio (eigenvalues at or below
+        ``1 / max_ratio``, negative ones included, get it).
+
+    Returns
+    -------
+    Widening
+        Every eigen-direction with eigenvalue ``lambda < 1`` widened by
+        ``1 / max(lambda, 1 / max_ratio)``; the others keep the approximation
+        (it is only ever widened: where the posterior is more curved than a
+        Gauss-Newton precision, the difference is sampling noise or small).
+        ``largest`` is the largest ratio, ``edge`` 1 and ``n_draws`` 0.
+
+    Raises
+    ------
+    InputError
+        A matrix of the wrong shape or not finite, or ``max_ratio <= 1``.
+    """
+    h = np.asarray(whitened_precision, np.float64)
+    d = approx.size
+    if h.shape != (d, d) or not np.all(np.isfinite(h)):
+        raise InputError(f"widening needs a finite ({d}, {d}) whitened precision; got {h.shape}")
+    if not (math.isfinite(max_ratio) and max_ratio > 1.0):
+        raise InputError(f"max_ratio must be a number > 1, got {max_ratio!r}")
+    values, vectors = np.linalg.eigh(0.5 * (h + h.T))
+    keep = values < 1.0 - 1e-6  # not rounding of an unchanged direction
+    if not np.any(keep):
+        return Widening(approx, np.zeros(0), np.zeros((d, 0)), 1.0, 1.0, 0)
+    ratios = 1.0 / np.maximum(values[keep], 1.0 / max_ratio)
+    v = vectors[:, keep]
+    return Widening(_widened(approx, ratios, v), ratios, v, float(ratios.max()), 1.0, 0)

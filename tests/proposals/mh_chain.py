@@ -96,8 +96,10 @@ def changed_blocks(a: RenderParameter, b: RenderParameter) -> Block:
             out |= blk
     if not np.array_equal(a.environment_map.coefficients, b.environment_map.coefficients):
         out |= Block.LIGHT
-    if a.directional_light != b.directional_light:
-        out |= Block.DIRECTIONAL
+    if a.directional_light.direction != b.directional_light.direction:
+        out |= Block.DIRECTIONAL_ANGLES
+    if a.directional_light._replace(direction=b.directional_light.direction) != b.directional_light:
+        out |= Block.DIRECTIONAL_STRENGTH
     if a.color_transform != b.color_transform:
         out |= Block.COLOR_TRANSFORM
     if a.specular_exponent != b.specular_exponent:

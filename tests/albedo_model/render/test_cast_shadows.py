@@ -188,10 +188,11 @@ def _delta(renderer, before):
 def test_steps_cast_only_the_rays_they_need():
     """``Renderer.ray_counts`` after each kind of step, against what the step changes.
 
-    A light-direction step (``Block.DIRECTIONAL``) casts one shadow ray per face
-    pixel and no primary ray, reuses the primary hits, and gives the image of a
-    fresh render of the new parameters; SH light, albedo and colour steps cast
-    nothing and keep the very shadow array of the state they start from; a pose
+    A light-direction step (``Block.DIRECTIONAL_ANGLES``) casts one shadow ray
+    per face pixel and no primary ray, reuses the primary hits, and gives the
+    image of a fresh render of the new parameters; SH light, albedo, colour and
+    directional-strength steps cast nothing and keep the very shadow array of
+    the state they start from; a pose
     step casts both, and the steps after it is accepted reuse its shadow.
     """
     model = nosed_model()
@@ -204,7 +205,7 @@ def test_steps_cast_only_the_rays_they_need():
 
     before = dict(renderer.ray_counts)
     turned = params._replace(directional_light=side_light(-50, 25))
-    cand = renderer.update(state, turned, Block.DIRECTIONAL)
+    cand = renderer.update(state, turned, Block.DIRECTIONAL_ANGLES)
     assert _delta(renderer, before) == {"primary": 0, "shadow": n_face}
     assert cand.hits is state.hits and cand.pixel_hits is state.pixel_hits
     assert cand.shadow is not state.shadow and cand.shadow[0] != state.shadow[0]
@@ -219,6 +220,9 @@ def test_steps_cast_only_the_rays_they_need():
         Block.ALBEDO: params._replace(momo=m._replace(albedo=m.albedo + [0.5, -0.3, 0.2])),
         Block.COLOR_TRANSFORM: params._replace(
             color_transform=ColorTransform((1.1, 0.9, 1.0), 0.8, (0.01, 0.0, 0.0))),
+        Block.DIRECTIONAL_STRENGTH: params._replace(directional_light=params.directional_light
+                                                    ._replace(diffuse=(0.3, 0.5, 0.4),
+                                                              specular=(0.3, 0.5, 0.4))),
     }
     for touched, moved in unchanged.items():
         before = dict(renderer.ray_counts)

@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 from face_factory import scene, small_face_model, synthetic_target
 
-from albedo_model.params import Block
+from albedo_model.params import Block, DirectionalLight
 from albedo_model.render.cache_table import ATOMIC_BLOCKS, STAGE_DEPS
+from albedo_model.render.renderer import Renderer
+from albedo_model.shading.image_formation import encode_gamma
 from mcmcfit.fitting.cache_check import CacheMismatchError
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.fitting.fit import fit
@@ -69,6 +71,33 @@ def test_check_cache_passes_over_the_gaussian_sampler(case):
                  "light-conditional"):
         assert any(k.startswith(kind) for k in kinds), (kind, sorted(kinds))
     assert sum(s.accepted for s in res.acceptance.values()) > 0
+
+
+def test_check_cache_passes_with_the_directional_light_and_its_shadows(case):
+    """The Gaussian sampler with the directional light sampled (``effects="sh+directional"``).
+
+    The face is rendered under a side light with cast shadows and noise. The
+    light's angles and strength are separate blocks: the shadow cache is keyed
+    on the angles alone, so a strength move (the SH light's exact conditional,
+    accepted here every time) reuses the shadow; the check compares each step
+    with a fresh render that casts every shadow ray again.
+    """
+    model = case[0]
+    truth = scene(64, 64, yaw=0.25, pitch=-0.1)._replace(
+        directional_light=DirectionalLight.from_angles(0.6, 0.3, (0.5, 0.45, 0.4),
+                                                       shininess=20.0))
+    renderer = Renderer(model, shadows=True, directional_specular_map=True, threads=1)
+    out = renderer.render(truth)
+    noisy = np.clip(out.image + np.random.default_rng(0).normal(0.0, 0.01, out.image.shape), 0, 1)
+    image = np.where(out.mask[..., None], np.asarray(encode_gamma(noisy), np.float64), 0.35)
+    names, px, vis = renderer.landmarks(out.state)
+    clicks = {n: q for n, q, ok in zip(names, px, vis) if ok}
+    cfg = FitConfig(steps=100, warmup_steps=30, landmark_steps=100, sigma_lm=2.0,
+                    check_cache=True, chains=1, parallel=False, mode_rounds=1, mode_steps=3,
+                    hmc_weight=0.2, hmc_leapfrog=2, effects="sh+directional")
+    res = fit(image, clicks, model, config=cfg, seed=5)
+    assert res.stopping["effects"]["decision"] == "sh+directional"
+    assert res.acceptance["light-conditional"].accepted > 0
 
 
 _PREFIX_BLOCKS = (

@@ -70,7 +70,8 @@ def test_directional_strength_joins_the_light_system():
     The sphere with a nose under a side light, cast shadows on, its highlight the
     colour of its diffuse term (the fit's light): a state with another SH light and
     strength (same direction, geometry, albedo) gives the exact ones back (tiny sigma,
-    flat prior), and the light move then touches LIGHT | DIRECTIONAL. Without
+    flat prior), and the light move then touches LIGHT | DIRECTIONAL_STRENGTH (not the
+    direction the cast shadows depend on). Without
     ``directional`` the strength stays an offset: the system has only the SH rows.
     """
     from shadow_scenes import lit_scene, nosed_model
@@ -97,7 +98,7 @@ def test_directional_strength_joins_the_light_system():
     flat = np.full((k, 3), 1e6)
     prop = LightConditional(lambda s: system, np.zeros((k, 3)), flat, sigma=1e-4)
     move = prop(np.random.default_rng(0), state)
-    assert move.touched == Block.LIGHT | Block.DIRECTIONAL
+    assert move.touched == Block.LIGHT | Block.DIRECTIONAL_STRENGTH  # the shadows stay
     np.testing.assert_allclose(move.params.directional_light.diffuse, (0.6, 0.5, 0.4), atol=2e-3)
     np.testing.assert_allclose(move.params.directional_light.specular,
                                move.params.directional_light.diffuse)
