@@ -46,7 +46,7 @@ from albedo_model.render.differentiable import (
     DifferentiableModel, FixedHits, GeometryParams, SceneInputs, barycentric_weights,
     pixel_attributes, shade_attributes,
 )
-from albedo_model.render.normals import vertex_normal_columns
+from albedo_model.render.normals import vertex_normal_columns, vertex_normal_tangents
 from albedo_model.scene_vector import SceneLayout
 from albedo_model.shading.effects import Effects
 from albedo_model.shading.scalars import packed_slice
@@ -59,6 +59,8 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
     sl = layout.slices()
     ks, ke = layout.n_shape, layout.n_expression
     geo = np.r_[sl["shape"], sl["expression"]]
+    n_geometry = np.r_[geo, sl["angles"], sl["translation"], sl["focal_length"],
+                       sl["principal_point"]].size
     light = packed_slice("sh")
 
     def vertices(x, scene: SceneInputs):
@@ -98,9 +100,19 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
         return jnp.stack(shade_attributes(effects, attrs, sc, hits)[0])
 
     def vertex_tangents(x, scene):
-        def of_coefficients(c):
-            return vertices(x.at[geo].set(c), scene)
-        return jax.jacfwd(of_coefficients)(x[geo])
+        """Vertex and normal tangents (n, 3, G), three (n, G) along the G geometry directions.
+
+        The vertices are linear in the coefficients (their tangents are the
+        bases' columns); the pose and camera directions move no vertex (zeros).
+        """
+        n = scene.mean.shape[0]
+        dv = jnp.concatenate([scene.shape_basis, scene.expression_basis], axis=1)
+        dv = dv.reshape(n, 3, geo.size)
+        v, _ = vertices(x, scene)
+        dn = vertex_normal_tangents(v, scene.triangles, dv)
+        rest = n_geometry - geo.size
+        return (jnp.concatenate([dv, jnp.zeros((n, 3, rest), dv.dtype)], axis=-1),
+                tuple(jnp.concatenate([c, jnp.zeros((n, rest), c.dtype)], axis=-1) for c in dn))
 
     def albedo_tangents(v, x, scene, hits, columns):
         """Tangents of the interpolated diffuse and specular albedo: two (3, C, ka) triples."""
@@ -114,11 +126,13 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
         return (tuple(cols[:, i] for i in range(3)), tuple(cols[:, 3 + i] for i in range(3)))
 
     @jax.jit
-    def attribute_tangents(v, normals, table, x, scene, hits, dv, dn, dtable, dx):
-        def f(a, b, c, d):
-            return attributes(a, b, c, d, scene, hits)
-        return jax.vmap(lambda t: jax.jvp(f, (v, normals, table, x), t)[1],
-                        in_axes=((-1, -1, -1, 0),), out_axes=-1)((dv, dn, dtable, dx))
+    def attribute_tangents(v, normals, table, x, scene, hits, dv, dn, dx):
+        # The albedo table is held: its directions are the albedo coefficients', added by
+        # albedo_tangents; a zero table tangent cost a gather per direction (~30 % more).
+        def f(a, b, d):
+            return attributes(a, b, table, d, scene, hits)
+        return jax.vmap(lambda t: jax.jvp(f, (v, normals, x), t)[1],
+                        in_axes=((-1, -1, 0),), out_axes=-1)((dv, dn, dx))
 
     @jax.jit
     def shading_tangents(attrs, x, scene, hits, dattrs, dx):
@@ -258,14 +272,9 @@ class PixelJacobian:
         hits = hits._replace(pixels=None)
         v, normals = vertices(x, scene)
         tab = table(x, self._albedo_mean, self._albedo_basis)
-        dv, dn = vertex_t(x, scene)  # (n, 3, G0), three (n, G0): shape and expression only
-        n = v.shape[0]
-        rest = self._geometry.size - dv.shape[-1]
-        dv = jnp.concatenate([dv, jnp.zeros((n, 3, rest), dv.dtype)], axis=-1)
-        dn = tuple(jnp.concatenate([c, jnp.zeros((n, rest), c.dtype)], axis=-1) for c in dn)
-        dtable = jnp.zeros((n, 6, self._geometry.size), jnp.float32)
+        dv, dn = vertex_t(x, scene)  # (n, 3, G), three (n, G)
         attrs = attributes(v, normals, tab, x, scene, hits)
-        dattrs = attribute_t(v, normals, tab, x, scene, hits, dv, dn, dtable, self._dx2)
+        dattrs = attribute_t(v, normals, tab, x, scene, hits, dv, dn, self._dx2)
         diffuse_t, specular_t = albedo_t(v, x, scene, hits, self._albedo_columns)
         dattrs = _with_albedo_directions(dattrs, diffuse_t, specular_t, self._shading.size)
         colours = shading(attrs, x, scene, hits)
@@ -316,8 +325,13 @@ class PixelJacobian:
         return float(value), np.asarray(grad, np.float64)
 
 
+@functools.partial(jax.jit, static_argnums=3)
 def _with_albedo_directions(dattrs, diffuse_t, specular_t, n_shading: int):
-    """Append the albedo directions (and zero shading directions) to the attribute tangents."""
+    """Append the albedo directions (and zero shading directions) to the attribute tangents.
+
+    Compiled: op by op, the concatenations of these (C, D) arrays took most of
+    :meth:`PixelJacobian.jacobian`'s time.
+    """
     def extend(t, albedo):
         zeros = jnp.zeros(t.shape[:-1] + (n_shading,), t.dtype)
         if albedo is None:
