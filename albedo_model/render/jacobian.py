@@ -99,16 +99,16 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
         sc = scene._replace(packed=packed(x, scene))
         return jnp.stack(shade_attributes(effects, attrs, sc, hits)[0])
 
-    def vertex_tangents(x, scene):
+    def vertex_tangents(v, scene):
         """Vertex and normal tangents (n, 3, G), three (n, G) along the G geometry directions.
 
-        The vertices are linear in the coefficients (their tangents are the
-        bases' columns); the pose and camera directions move no vertex (zeros).
+        ``v`` are the vertices at the point. They are linear in the coefficients
+        (their tangents are the bases' columns); the pose and camera directions
+        move no vertex (zeros).
         """
         n = scene.mean.shape[0]
         dv = jnp.concatenate([scene.shape_basis, scene.expression_basis], axis=1)
         dv = dv.reshape(n, 3, geo.size)
-        v, _ = vertices(x, scene)
         dn = vertex_normal_tangents(v, scene.triangles, dv)
         rest = n_geometry - geo.size
         return (jnp.concatenate([dv, jnp.zeros((n, 3, rest), dv.dtype)], axis=-1),
@@ -272,7 +272,7 @@ class PixelJacobian:
         hits = hits._replace(pixels=None)
         v, normals = vertices(x, scene)
         tab = table(x, self._albedo_mean, self._albedo_basis)
-        dv, dn = vertex_t(x, scene)  # (n, 3, G), three (n, G)
+        dv, dn = vertex_t(v, scene)  # (n, 3, G), three (n, G)
         attrs = attributes(v, normals, tab, x, scene, hits)
         dattrs = attribute_t(v, normals, tab, x, scene, hits, dv, dn, self._dx2)
         diffuse_t, specular_t = albedo_t(v, x, scene, hits, self._albedo_columns)
