@@ -75,6 +75,12 @@ class AlbedoSystem(NamedTuple):
         of the blocks it reads, :mod:`albedo_model.render.cache_table`): the
         proposals keep the factorisation of the conditional while it is unchanged.
         None: never reused.
+    offset_count : float
+        How often the colour transform's offset enters a pixel (``off`` is this
+        times the offsets; 0 when the render has no colour transform).
+    row_weights : (N,) float or None
+        Square roots of fixed per-pixel weights the rows (``jac``, ``mean`` and
+        ``target - off``) were scaled by; None: unweighted.
     """
 
     jac: np.ndarray
@@ -90,6 +96,8 @@ class AlbedoSystem(NamedTuple):
     jt_off: np.ndarray
     weight: float = 1.0
     key: tuple | None = None
+    offset_count: float = 1.0
+    row_weights: np.ndarray | None = None
 
 
 def _normal_terms(jac, mean, target, off):
@@ -101,10 +109,12 @@ def _normal_terms(jac, mean, target, off):
 
 
 def albedo_system(jac, mean, bright, target, off, rank, n_points: int,
-                  weight: float = 1.0, key: tuple | None = None) -> AlbedoSystem:
+                  weight: float = 1.0, key: tuple | None = None, *, offset_count: float = 1.0,
+                  row_weights: np.ndarray | None = None) -> AlbedoSystem:
     """Return an :class:`AlbedoSystem` with its normal-equation terms precomputed."""
     return AlbedoSystem(jac, mean, bright, target, off, rank, int(n_points),
-                        *_normal_terms(jac, mean, target, off), float(weight), key)
+                        *_normal_terms(jac, mean, target, off), float(weight), key,
+                        float(offset_count), row_weights)
 
 
 #: ``data(state) -> AlbedoSystem or None`` of the accepted state (its ``params`` and

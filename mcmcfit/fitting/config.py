@@ -126,6 +126,11 @@ class FitConfig:
         kept draws of all chains are clearly wider; if any direction is
         widened, those draws become warm-up, the step sizes are re-adapted for
         100 steps and the kept draws start again (0: never).
+    albedo_offsets : bool
+        Gaussian sampler: the albedo's exact conditional draws the colour
+        transform's offsets with the albedo coefficients
+        (:class:`proposals.albedo_offset.AlbedoOffsetConditional`; False: the
+        albedo alone).
     stop_when_converged : bool
         End the image stage at the first check where every monitored quantity
         has rank-normalised split R-hat < 1.01 and bulk- and tail-ESS >= 400.
@@ -281,6 +286,7 @@ class FitConfig:
     metric: str = "gauss-newton"
     widen: bool = False
     widen_at: int = 0
+    albedo_offsets: bool = True
     stop_when_converged: bool = True
     time_budget: float | None = None
     noise: str = "estimated"

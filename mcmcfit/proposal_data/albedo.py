@@ -169,9 +169,12 @@ class RenderAlbedoData:
             jac = np.einsum("cd,ndj->ncj", mat, jac)
             mean, bright = mean @ mat.T, bright @ mat.T
         target = self._target[face].astype(np.float32)
+        row_weights = None
         if self._root_weights is not None:  # rows scaled: the residual t - s r0 - o becomes
             sw = self._root_weights[face][:, None]  # sw (t - s r0 - o), the clamp test kept
             jac, mean = jac * sw[..., None], mean * sw
             target = (target - off) * sw + off
+            row_weights = sw[:, 0]
+        count = offset_count(rs.effects) if rs.effects.color_transform else 0.0
         return albedo_system(jac, mean, bright, target, off, self._rank[face], face.size, weight,
-                             key)
+                             key, offset_count=count, row_weights=row_weights)

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from proposals.albedo_offset import AlbedoOffsetConditional, ContrastAlbedoExchange
 from proposals.albedo_solver import AlbedoConditional, AlbedoData
 from proposals.base import Mixture, Proposal, mixture
 from proposals.laplace.coordinates import SamplingCoordinates
@@ -31,15 +32,16 @@ from proposals.laplace.random_walk import GaussianRandomWalk
 from proposals.light_conditional import LightConditional
 from proposals.schedule import Scales
 
-__all__ = ["BLOCK_SHARES", "GAUSSIAN_BLOCKS", "GAUSSIAN_FAMILIES", "GAUSSIAN_STEPS", "GAUSSIAN_TARGETS",
-           "HMC_STEP", "WALK_SCALE", "WIDE_FACTOR", "gaussian_image_proposal", "rho_of", "walk_scale"]
+__all__ = ["BLOCK_SHARES", "CONTRAST_STEP", "GAUSSIAN_BLOCKS", "GAUSSIAN_FAMILIES", "GAUSSIAN_STEPS",
+           "GAUSSIAN_TARGETS", "HMC_STEP", "WALK_SCALE", "WIDE_FACTOR", "gaussian_image_proposal",
+           "rho_of", "walk_scale"]
 
 #: A joint fit's per-image coordinate-name prefix (:mod:`proposals.laplace.joint_coordinates`).
 _IMAGE_PREFIX = re.compile(r"^image\d+\.")
 
 #: The Gaussian moves' families (warm-up adapts one step multiplier each).
 GAUSSIAN_FAMILIES = ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
-                     "geometry-walk", "geometry-wide", "hmc")
+                     "geometry-walk", "geometry-wide", "hmc", "contrast-exchange")
 
 #: Initial Crank-Nicolson step ``sqrt(1 - rho^2)`` of the Gaussian moves' families (the
 #: warm-up multiplies it by the family's multiplier, at most to 1: an independent draw).
@@ -50,12 +52,18 @@ GAUSSIAN_STEPS = {"pcn": 0.85, "gaussian-geometry": 0.8, "gaussian-albedo": 1.0,
 #: face: the Crank-Nicolson move's effective samples per step peak near 0.2 acceptance).
 GAUSSIAN_TARGETS = {"pcn": 0.2, "gaussian-geometry": 0.3, "gaussian-albedo": 0.3,
                     "gaussian-shading": 0.3, "geometry-walk": 0.25, "geometry-wide": 0.25,
-                    "hmc": 0.65}
+                    "hmc": 0.65, "contrast-exchange": 0.4}
 
 #: Initial step of the geometry's random walk, in conditional sds per coordinate, times
 #: ``1 / sqrt(k)`` for a block of ``k`` coordinates (2.4 / sqrt(k): the optimal walk's
 #: step where the posterior matches the approximation; Roberts, Gelman & Gilks 1997).
 WALK_SCALE = 2.4
+
+#: Initial contrast step of :class:`~proposals.albedo_offset.ContrastAlbedoExchange`, in
+#: the contrast's marginal sds under the approximation (the warm-up multiplies it): the
+#: contrast's conditional given the rest is ~10x narrower, which the exchange need not
+#: respect, as it redraws the albedo and offsets under the new contrast.
+CONTRAST_STEP = 2.0
 
 #: Initial leapfrog step of the whitened HMC move (whitened units; the warm-up multiplies it).
 HMC_STEP = 0.5
@@ -104,7 +112,7 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
                             albedo_weight: float = 0.2,
                             light_conditional_weight: float = 0.1,
                             gradient: CoordinateGradient | None = None, hmc_weight: float = 0.0,
-                            hmc_leapfrog: int = 4,
+                            hmc_leapfrog: int = 4, offset_sd: float | None = None,
                             extra_moves: Sequence[tuple[float, Proposal]] = ()) -> Mixture:
     """Build the image-stage proposal of the Gaussian sampler (the default).
 
@@ -136,6 +144,15 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
         Top-level weight of the HMC move.
     hmc_leapfrog : int
         Leapfrog steps per HMC move (each a ray cast and a gradient).
+    offset_sd : float, optional
+        Prior sd of the colour offsets: the albedo's exact conditional draws
+        them with the albedo coefficients
+        (:class:`~proposals.albedo_offset.AlbedoOffsetConditional`), and a move
+        of the colour contrast redraws both under the new contrast, with the
+        albedo conditional's weight
+        (:class:`~proposals.albedo_offset.ContrastAlbedoExchange`, family
+        ``"contrast-exchange"``); None: the albedo alone
+        (:class:`~proposals.albedo_solver.AlbedoConditional`).
     extra_moves : sequence of (weight, proposal)
         Further top-level moves (a joint fit's conditionals over several images).
 
@@ -166,7 +183,17 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
                                                 rho=rho_of(family, k))
             parts.append((share * block_weight, mixture((1.0, move), name=family)))
     if albedo_data is not None and albedo_weight > 0:
-        parts.append((albedo_weight, AlbedoConditional(albedo_data, sigma=pixel_sigma)))
+        parts.append((albedo_weight, AlbedoConditional(albedo_data, sigma=pixel_sigma)
+                      if offset_sd is None else
+                      AlbedoOffsetConditional(albedo_data, sigma=pixel_sigma, offset_sd=offset_sd)))
+        at = np.flatnonzero(names == "contrast")
+        if offset_sd is not None and at.size:
+            chol = np.asarray(approx.chol_cov)[at[0]]
+            step = CONTRAST_STEP * float(np.sqrt(chol @ chol)) * float(
+                k.get("contrast-exchange", 1.0))
+            parts.append((albedo_weight, mixture((1.0, ContrastAlbedoExchange(
+                albedo_data, step=step, sigma=pixel_sigma, offset_sd=offset_sd)),
+                name="contrast-exchange")))
     if light_conditional is not None and light_conditional_weight > 0:
         parts.append((light_conditional_weight, light_conditional))
     parts += [(w, move) for w, move in extra_moves if w > 0]
