@@ -67,8 +67,8 @@ def test_check_cache_passes_over_the_gaussian_sampler(case):
     res = fit(image, clicks, model, config=cfg, seed=11)
     kinds = set(res.acceptance)
     for kind in ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
-                 "geometry-walk", "geometry-wide", "hmc", "albedo-conditional",
-                 "light-conditional"):
+                 "geometry-walk", "geometry-wide", "hmc", "albedo-offset-conditional",
+                 "contrast-albedo-exchange", "light-conditional"):
         assert any(k.startswith(kind) for k in kinds), (kind, sorted(kinds))
     assert sum(s.accepted for s in res.acceptance.values()) > 0
 
