@@ -107,6 +107,10 @@ class FitConfig:
         anchors are the vertices the region sees at the mode). Straightens the
         curved focal-length/distance/size ridge the Laplace approximation
         cannot follow. Perspective cameras only (ignored for orthographic ones).
+    inverse_distance : bool
+        Gaussian sampler (with ``image_size``): sample ``d_0 / d`` in place of
+        the log distance (:class:`proposals.laplace.coordinates.SamplingCoordinates`):
+        the perspective's ridge with the shape and pose is straight in it.
     metric : {"gauss-newton", "hessian"}
         Gaussian sampler: the approximation the moves whiten with.
         ``"gauss-newton"`` (the default) is the Laplace approximation of the
@@ -283,6 +287,7 @@ class FitConfig:
     hmc_leapfrog: int = 3
     hmc_triangles: str = "cast"
     image_size: bool = True
+    inverse_distance: bool = False
     metric: str = "gauss-newton"
     widen: bool = False
     widen_at: int = 0

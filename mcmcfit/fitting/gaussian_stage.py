@@ -105,14 +105,16 @@ def appearance_coordinates(coords: SamplingCoordinates) -> np.ndarray:
     return np.array([n.startswith(blocks) for n in coords.names])
 
 
-def sampling_coordinates(params: RenderParameter,
-                         scale: ImageScale | None = None) -> SamplingCoordinates:
+def sampling_coordinates(params: RenderParameter, scale: ImageScale | None = None, *,
+                         inverse_distance: bool = False) -> SamplingCoordinates:
     """Return the Gaussian moves' coordinates for a fit whose parameters look like ``params``.
 
     With ``scale`` the focal length's coordinate is the face's log image size
-    (:mod:`proposals.laplace.image_scale`).
+    (:mod:`proposals.laplace.image_scale`); with ``inverse_distance`` the
+    distance's is ``d_0 / d`` (:class:`~proposals.laplace.coordinates.SamplingCoordinates`).
     """
-    return SamplingCoordinates(SceneLayout.for_params(params), params, scale=scale)
+    return SamplingCoordinates(SceneLayout.for_params(params), params, scale=scale,
+                               inverse_distance=inverse_distance)
 
 
 def region_and_noise(renderer: Renderer, target_linear: np.ndarray, params: RenderParameter,
@@ -382,7 +384,8 @@ class GaussianPhases(DrawPhases):
             anchors = anchor_vertices(self.problem.model.triangles,
                                       curvature.region_triangles(mode))
             self.coords = sampling_coordinates(
-                mode, scale=ImageScale.of_model(self.problem.model, mode, anchors))
+                mode, scale=ImageScale.of_model(self.problem.model, mode, anchors),
+                inverse_distance=self.cfg.inverse_distance)
             self._hmc_gradient = None  # a function of the coordinates just replaced
         self.approx = laplace(curvature, self.coords, mode)
         metric = None

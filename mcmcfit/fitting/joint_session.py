@@ -294,7 +294,8 @@ class JointChainSession(DrawPhases):
                                          caster=self.casters[i])
                 anchors = anchor_vertices(self.problem.model.triangles, cur.region_triangles(p))
                 images.append(sampling_coordinates(
-                    p, scale=ImageScale.of_model(self.problem.model, p, anchors)))
+                    p, scale=ImageScale.of_model(self.problem.model, p, anchors),
+                    inverse_distance=self.cfg.inverse_distance))
             self.coords = JointCoordinates(images)
         self._hmc_gradient = None
         self.approx = laplace(self._curvature(), self.coords, mode)

@@ -33,8 +33,8 @@ from proposals.light_conditional import LightConditional
 from proposals.schedule import Scales
 
 __all__ = ["BLOCK_SHARES", "CONTRAST_STEP", "GAUSSIAN_BLOCKS", "GAUSSIAN_FAMILIES", "GAUSSIAN_STEPS",
-           "GAUSSIAN_TARGETS", "HMC_STEP", "WALK_SCALE", "WIDE_FACTOR", "gaussian_image_proposal",
-           "rho_of", "walk_scale"]
+           "GAUSSIAN_TARGETS", "GEOMETRY_COORDINATES", "HMC_STEP", "WALK_SCALE", "WIDE_FACTOR",
+           "gaussian_image_proposal", "rho_of", "walk_scale"]
 
 #: A joint fit's per-image coordinate-name prefix (:mod:`proposals.laplace.joint_coordinates`).
 _IMAGE_PREFIX = re.compile(r"^image\d+\.")
@@ -79,14 +79,18 @@ BLOCK_SHARES = {"gaussian-geometry": 0.25, "geometry-wide": 0.15, "geometry-walk
 #: outreach the Laplace approximation's, so a chain out there is drawn back in large steps.
 WIDE_FACTOR = 2.0
 
+#: The geometry's coordinates (by name prefix): the distance's is ``log_distance`` or
+#: ``inverse_distance``, the focal length's ``log_focal_length`` or ``log_image_size``
+#: (:mod:`proposals.laplace.coordinates`).
+GEOMETRY_COORDINATES = ("shape", "expression", "angles", "translation", "log_distance",
+                        "inverse_distance", "log_focal_length", "log_image_size",
+                        "principal_point")
+
 #: The coordinates of the Gaussian moves' blocks (by name prefix, :mod:`proposals.laplace.coordinates`).
 GAUSSIAN_BLOCKS = {
-    "gaussian-geometry": ("shape", "expression", "angles", "translation", "log_distance",
-                          "log_focal_length", "principal_point"),
-    "geometry-walk": ("shape", "expression", "angles", "translation", "log_distance",
-                      "log_focal_length", "principal_point"),
-    "geometry-wide": ("shape", "expression", "angles", "translation", "log_distance",
-                      "log_focal_length", "principal_point"),
+    "gaussian-geometry": GEOMETRY_COORDINATES,
+    "geometry-walk": GEOMETRY_COORDINATES,
+    "geometry-wide": GEOMETRY_COORDINATES,
     "gaussian-albedo": ("albedo",),
     "gaussian-shading": ("light", "gain", "contrast", "offset", "log_specular_exponent",
                          "log_light_intensity"),
