@@ -109,12 +109,11 @@ def sampling_coordinates(params: RenderParameter, scale: ImageScale | None = Non
                          inverse_distance: bool = False) -> SamplingCoordinates:
     """Return the Gaussian moves' coordinates for a fit whose parameters look like ``params``.
 
-    With ``scale`` the focal length's coordinate is the face's log image size
-    (:mod:`proposals.laplace.image_scale`); with ``inverse_distance`` the
-    distance's is ``d_0 / d`` (:class:`~proposals.laplace.coordinates.SamplingCoordinates`).
+    Coordinates: the face's log image size for the focal length with ``scale``, ``d_0 / d``
+    for the distance with ``inverse_distance`` (:mod:`proposals.laplace.coordinates`).
     """
-    return SamplingCoordinates(SceneLayout.for_params(params), params, scale=scale,
-                               inverse_distance=inverse_distance)
+    layout = SceneLayout.for_params(params)
+    return SamplingCoordinates(layout, params, scale=scale, inverse_distance=inverse_distance)
 
 
 def region_and_noise(renderer: Renderer, target_linear: np.ndarray, params: RenderParameter,
@@ -383,9 +382,8 @@ class GaussianPhases(DrawPhases):
         if self.cfg.image_size and not mode.camera.orthographic:
             anchors = anchor_vertices(self.problem.model.triangles,
                                       curvature.region_triangles(mode))
-            self.coords = sampling_coordinates(
-                mode, scale=ImageScale.of_model(self.problem.model, mode, anchors),
-                inverse_distance=self.cfg.inverse_distance)
+            scale = ImageScale.of_model(self.problem.model, mode, anchors)
+            self.coords = sampling_coordinates(mode, scale, inverse_distance=self.cfg.inverse_distance)
             self._hmc_gradient = None  # a function of the coordinates just replaced
         self.approx = laplace(curvature, self.coords, mode)
         metric = None
