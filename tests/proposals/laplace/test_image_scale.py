@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 import pytest
-from face_factory import scene, small_face_model
+from face_factory import small_face_model
+from laplace_cases import image_scale_case
 
 from albedo_model.camera import pixel_scale, project
 from albedo_model.errors import InputError
@@ -26,14 +27,7 @@ from proposals.laplace.image_scale import ImageScale, anchor_vertices
 
 @pytest.fixture(scope="module")
 def setting():
-    model = small_face_model(subdivisions=3)
-    rng = np.random.default_rng(3)
-    params = scene(64, 64, yaw=0.3, pitch=-0.1, roll=0.05, translation=(12.0, -8.0, -950.0),
-                   coefficients=MoMoCoefficients(rng.normal(size=4), rng.normal(size=3),
-                                                 rng.normal(0, 0.7, 2)))
-    n = model.shape.dim // 3
-    ids = np.arange(0, n, 3)
-    return model, params, ids, ImageScale.of_model(model, params, ids)
+    return image_scale_case()
 
 
 def test_anchor_vertices_of_seen_triangles():

@@ -14,9 +14,9 @@ import math
 import numpy as np
 import pytest
 from face_factory import scene, small_face_model
-from mh_chain import assert_moments, base_state, run_chain
+from laplace_cases import image_scale_case, small_template
+from mh_chain import assert_moments, run_chain
 
-from albedo_model.params import MoMoCoefficients, SHLight
 from albedo_model.scene_vector import SceneLayout
 from proposals.laplace.coordinates import SamplingCoordinates
 from proposals.laplace.image_scale import ImageScale
@@ -25,15 +25,8 @@ from proposals.laplace.moves import CrankNicolson, GaussianApproximation
 SEEDS = (1, 2, 3)
 
 
-def _template():
-    p = base_state()
-    momo = MoMoCoefficients(np.array([0.1, -0.2]), np.array([0.3, 0.1]), np.array([0.05]), "")
-    return p._replace(momo=momo, environment_map=SHLight(SHLight.frontal().coefficients[:1]),
-                      specular_exponent=20.0)
-
-
 def _coords(params=None, scale=None):
-    p = _template() if params is None else params
+    p = small_template() if params is None else params
     return SamplingCoordinates(SceneLayout.for_params(p), p, scale=scale, inverse_distance=True)
 
 
@@ -52,7 +45,7 @@ def _fd_jacobian(c, u, h=1e-6):
 
 
 def test_round_trip_and_value():
-    p = _template()
+    p = small_template()
     c = _coords(p)
     names = list(c.names)
     assert "inverse_distance" in names and "log_distance" not in names
@@ -125,13 +118,9 @@ def test_jacobian_gradient_and_precision_against_central_differences():
 
 
 def test_with_the_image_size_coordinate():
-    model = small_face_model(subdivisions=3)
+    _, params, _, scale = image_scale_case()
     rng = np.random.default_rng(3)
-    params = scene(64, 64, yaw=0.3, pitch=-0.1, roll=0.05, translation=(12.0, -8.0, -950.0),
-                   coefficients=MoMoCoefficients(rng.normal(size=4), rng.normal(size=3),
-                                                 rng.normal(0, 0.7, 2)))
-    n = model.shape.dim // 3
-    c = _coords(params, ImageScale.of_model(model, params, np.arange(0, n, 3)))
+    c = _coords(params, scale)
     assert {"log_image_size", "inverse_distance"} <= set(c.names)
     u = c.u_of(params) + rng.normal(0, 0.005, c.size)
     jac = _fd_jacobian(c, u)

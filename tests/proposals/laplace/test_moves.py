@@ -13,14 +13,15 @@ import math
 
 import numpy as np
 import pytest
-from mh_chain import DropRatio, assert_moments, base_state, moment_errors, run_chain
+from laplace_cases import small_template
+from mh_chain import DropRatio, assert_moments, moment_errors, run_chain
 
 from albedo_model.errors import InputError
-from albedo_model.params import Block, MoMoCoefficients, SHLight
+from albedo_model.params import Block
 from albedo_model.scene_vector import SceneLayout
 from proposals.base import Move, ProposalState
-from proposals.laplace.coordinates import HELD, SamplingCoordinates
 from proposals.gradient import leapfrog
+from proposals.laplace.coordinates import HELD, SamplingCoordinates
 from proposals.laplace.moves import (
     CrankNicolson,
     GaussianApproximation,
@@ -32,15 +33,8 @@ from proposals.laplace.random_walk import GaussianRandomWalk
 SEEDS = (1, 2, 3)
 
 
-def _template():
-    p = base_state()
-    momo = MoMoCoefficients(np.array([0.1, -0.2]), np.array([0.3, 0.1]), np.array([0.05]), "")
-    return p._replace(momo=momo, environment_map=SHLight(SHLight.frontal().coefficients[:1]),
-                      specular_exponent=20.0)
-
-
 def _coords():
-    p = _template()
+    p = small_template()
     return SamplingCoordinates(SceneLayout.for_params(p), p)
 
 
@@ -86,7 +80,7 @@ class Target:
 
 def test_coordinates_round_trip_hold_and_log_scale():
     c = _coords()
-    p = _template()._replace(camera=_template().camera._replace(principal_point=(0.1, -0.2)))
+    p = small_template()._replace(camera=small_template().camera._replace(principal_point=(0.1, -0.2)))
     c = SamplingCoordinates(SceneLayout.for_params(p), p)
     u = c.u_of(p)
     assert c.size == SceneLayout.for_params(p).size - 5  # gain (3) and principal point (2)
