@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
@@ -84,20 +85,39 @@ def stand_in_head() -> StandInHead:
 
 
 @pytest.fixture(scope="session")
-def default_model_file(tmp_path_factory) -> Path:
-    """The real built-in default model, built once per test session into a temporary cache.
+def shared_cache(tmp_path_factory) -> Path:
+    """The run's mcmcfit cache (``MCMCFIT_CACHE``), one for all pytest-xdist workers.
 
-    Sets ``MCMCFIT_CACHE`` for the session so that ``default`` resolves to it.
+    The workers share the built default model and XLA's compiled programs
+    (:func:`mcmcfit.fitting.chain_session.use_compilation_cache` keeps them in
+    ``<cache>/jax``), so each is built or compiled once per run, not once per worker.
     """
-    import os
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent  # the run's temporary root, common to its workers
+    cache = base / "mcmcfit-cache"
+    cache.mkdir(exist_ok=True)
+    return cache
+
+
+@pytest.fixture(scope="session")
+def default_model_file(shared_cache) -> Path:
+    """The real built-in default model, built once per test run into the run's cache.
+
+    Sets ``MCMCFIT_CACHE`` for the session so that ``default`` resolves to it;
+    the first worker to get here builds the model while the others wait.
+    """
+    import fcntl
 
     from pipeline.synthetic.default_model import ensure_default_model
 
-    cache = tmp_path_factory.mktemp("mcmcfit-cache")
     old = os.environ.get("MCMCFIT_CACHE")
-    os.environ["MCMCFIT_CACHE"] = str(cache)
+    os.environ["MCMCFIT_CACHE"] = str(shared_cache)
     try:
-        yield ensure_default_model(progress=False)
+        with open(shared_cache / "default-model.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            path = ensure_default_model(progress=False)
+        yield path
     finally:
         if old is None:
             os.environ.pop("MCMCFIT_CACHE", None)

@@ -67,6 +67,8 @@ def add_fit_arguments(p: argparse.ArgumentParser) -> None:
                    help="image-stage steps per chain (default: the default schedule)")
     p.add_argument("--landmark-steps", type=int, default=None,
                    help="landmark-stage steps per chain (default: the default schedule)")
+    p.add_argument("--warmup-steps", type=int, default=None,
+                   help="image-stage warm-up steps per chain (default: the default schedule)")
     p.add_argument("--chains", type=int, default=None, help="chains (default: FitConfig's)")
     p.add_argument("--checkpoints", type=_counts, default=[500, 1000, 2000, 5000, 10000],
                    metavar="N,N,...", help="image steps at which accuracy and time are reported "
@@ -175,7 +177,8 @@ def run_fit(args: argparse.Namespace) -> int:
     from mcmcfit.jobs.model_spec import load_model_spec
 
     changes = {k: v for k, v in (("steps", args.steps), ("landmark_steps", args.landmark_steps),
-                                 ("chains", args.chains)) if v is not None}
+                                 ("warmup_steps", args.warmup_steps), ("chains", args.chains))
+               if v is not None}
     cfg = FitConfig().replace(**changes)
     if args.size < 32:
         raise InputError(f"--size must be >= 32, got {args.size}")

@@ -27,7 +27,8 @@ from mcmcfit.batch.seeds import image_seed
 from mcmcfit.cli import main
 from mcmcfit.outputs import OUTPUT_FILES
 
-SHORT = ["--steps", "40", "--landmark-steps", "40", "--chains", "1", "--quiet"]
+SHORT = ["--steps", "40", "--warmup-steps", "20", "--landmark-steps", "40", "--chains", "1",
+         "--quiet"]
 REPO = Path(__file__).resolve().parents[3]
 
 

@@ -14,7 +14,7 @@ from albedo_model.io.pts import IBUG68_TO_BASEL
 from albedo_model.io.tlms import Landmark, write_tlms
 from mcmcfit.cli import main
 
-SHORT = ["--steps", "60", "--landmark-steps", "60", "--chains", "1"]
+SHORT = ["--steps", "60", "--warmup-steps", "30", "--landmark-steps", "60", "--chains", "1"]
 
 
 @pytest.fixture(scope="module")
@@ -116,8 +116,8 @@ def test_bad_inputs_give_one_line_and_write_nothing(files, tmp_path, capsys):
 
 def test_demo_prints_albedo_error(default_model_file, tmp_path, capsys):
     out = tmp_path / "demo"
-    assert main(["demo", "-o", str(out), "--size", "64", "--steps", "40", "--landmark-steps",
-                 "40", "--chains", "1", "--quiet"]) == 0
+    assert main(["demo", "-o", str(out), "--size", "64", "--steps", "40", "--warmup-steps", "20",
+                 "--landmark-steps", "40", "--chains", "1", "--quiet"]) == 0
     text = capsys.readouterr().out
     assert "diffuse albedo: RMSE" in text and "coverage of the 90 % intervals" in text
     summary = json.loads((out / "summary.json").read_text())

@@ -64,7 +64,8 @@ def test_a_short_fit_says_it_has_not_converged(tmp_path):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         summary = fit_into_folder(image, clicks, LoadedModel(model), tmp_path / "out",
-                                  config=FitConfig(steps=200, landmark_steps=100, thin=5))
+                                  config=FitConfig(steps=200, warmup_steps=50, landmark_steps=100,
+                                                   thin=5))
     assert summary["converged"] is False and summary["convergence"]["n_quantities"] > 10
     assert any(issubclass(w.category, FitWarning) and "NOT converged" in str(w.message)
                for w in caught)
