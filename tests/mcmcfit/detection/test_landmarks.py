@@ -154,7 +154,7 @@ def test_fit_of_a_photograph_and_nothing_else(tmp_path, astronaut):
     write_png(png, astronaut[::2, ::2] / 255.0)
     out = tmp_path / "fit"
     summary = run_fit_job(png, out, config=FitConfig(steps=150, warmup_steps=50, landmark_steps=1500,
-                                                        thin=5),
+                                                        thin=5, chains=1, parallel=False),
                           seed=0)
     assert summary["inputs"]["landmarks"] == "detected"
     assert summary["inputs"]["landmark_detection"]["n_faces"] == 1
