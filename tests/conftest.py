@@ -88,9 +88,9 @@ def stand_in_head() -> StandInHead:
 def shared_cache(tmp_path_factory) -> Path:
     """The run's mcmcfit cache (``MCMCFIT_CACHE``), one for all pytest-xdist workers.
 
-    The workers share the built default model and XLA's compiled programs
-    (:func:`mcmcfit.fitting.chain_session.use_compilation_cache` keeps them in
-    ``<cache>/jax``), so each is built or compiled once per run, not once per worker.
+    The workers share the built default model (built once per run, not once per
+    worker) and, in the fits that run after it is set, XLA's compiled programs
+    (:func:`mcmcfit.fitting.chain_session.use_compilation_cache` keeps them in ``<cache>/jax``).
     """
     base = tmp_path_factory.getbasetemp()
     if os.environ.get("PYTEST_XDIST_WORKER"):

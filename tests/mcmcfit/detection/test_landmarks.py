@@ -153,9 +153,9 @@ def test_fit_of_a_photograph_and_nothing_else(tmp_path, astronaut):
     png = tmp_path / "astronaut.png"
     write_png(png, astronaut[::2, ::2] / 255.0)
     out = tmp_path / "fit"
-    summary = run_fit_job(png, out, config=FitConfig(steps=150, warmup_steps=50, landmark_steps=1500,
-                                                        thin=5, chains=1, parallel=False),
-                          seed=0)
+    cfg = FitConfig(steps=150, warmup_steps=50, landmark_steps=1500, thin=5, chains=1,
+                    parallel=False)
+    summary = run_fit_job(png, out, config=cfg, seed=0)
     assert summary["inputs"]["landmarks"] == "detected"
     assert summary["inputs"]["landmark_detection"]["n_faces"] == 1
     for name in ("landmarks_detected.tlms", "landmarks_detected.png", "report.html",
@@ -187,8 +187,8 @@ def test_lightstage_photograph(shared_data, tmp_path):
     png = tmp_path / "im1_small.png"
     write_png(png, image)
     summary = run_fit_job(png, tmp_path / "fit", seed=1,
-                          config=FitConfig(steps=100, warmup_steps=50, landmark_steps=1500, thin=5, chains=1,
-                                           parallel=False))
+                          config=FitConfig(steps=100, warmup_steps=50, landmark_steps=1500,
+                                           thin=5, chains=1, parallel=False))
     assert summary["inputs"]["landmarks"] == "detected"
     assert np.isfinite(summary["landmark_rmse_px"]) and summary["landmark_rmse_px"] < 10.0
     assert (tmp_path / "fit" / "report.html").is_file()
@@ -201,8 +201,8 @@ def test_batch_detects_landmarks_of_images_without_files(tmp_path, astronaut):
     src.mkdir()
     write_png(src / "astronaut.png", astronaut[::2, ::2] / 255.0)
     out = tmp_path / "out"
-    args = ["batch", str(src), "-o", str(out), "--steps", "20", "--warmup-steps", "20", "--landmark-steps", "200",
-            "--workers", "1", "--quiet"]
+    args = ["batch", str(src), "-o", str(out), "--steps", "20", "--warmup-steps", "20",
+            "--landmark-steps", "200", "--workers", "1", "--quiet"]
     assert main(args) == 0  # without --detect-landmarks: skipped, recorded with the reason
     assert not (out / "astronaut").exists()
     assert "--detect-landmarks" in (out / "failures.jsonl").read_text()

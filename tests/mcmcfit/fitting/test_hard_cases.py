@@ -60,7 +60,7 @@ def test_the_first_climb_holds_the_colour_transform(default_model):
     With the colour transform free in the appearance-only climb, the climb reached contrast
     ~0 (a grey face) under a coloured light: residual RMS 0.096, diffuse RMSE 0.12, the
     noise model measured there flattening the posterior (temperature 174). Held at
-    identity until the joint climbs: residual 0.005, RMSE 0.0014 (~1 min on 2 cores).
+    identity until the joint climbs: residual 0.005, RMSE 0.0014 (1-3 min on 2 cores).
     """
     from mcmcfit.outputs.accuracy import albedo_score
 
