@@ -1,7 +1,7 @@
 """One chain of a fit, run in phases the driver asks for: landmarks, warm-up, kept draws.
 
 A :class:`ChainSession` owns one chain's renderer, targets, proposals, random
-generator and records. The fit driver (:mod:`mcmcfit.fitting.fit`) calls its
+generator and records. The fit driver (:mod:`mcmcfit.fitting.driver`) calls its
 methods in lockstep over all chains, in this process or in worker processes
 (:mod:`mcmcfit.fitting.chain_pool`): the same calls in the same order give the
 same chains either way.

@@ -118,6 +118,13 @@ class FitConfig:
         central differences of its exact gradient at +-1 sd, is flatter
         (:mod:`mcmcfit.fitting.curvature_widening`; 2 d gradient evaluations
         per chain, ~12 s). Off by default: it did not mix better (README).
+    recentre : bool
+        Gaussian sampler: after each warm-up window, a chain whose best draw
+        beats its mode by more than 10 nats climbs again from that draw, and the
+        Laplace approximation and the moves are rebuilt at the new mode (a climb
+        can stop short on a long ridge); a re-centring in the last window adds
+        one more window of warm-up (at most 3 re-centrings;
+        :meth:`~mcmcfit.fitting.draw_phases.DrawPhases.recentre`).
     widen : bool
         Gaussian sampler: at 60 % of the warm-up, widen the Laplace
         approximation the moves whiten with along the (at most 4) directions
@@ -289,6 +296,7 @@ class FitConfig:
     image_size: bool = True
     inverse_distance: bool = False
     metric: str = "gauss-newton"
+    recentre: bool = True
     widen: bool = False
     widen_at: int = 0
     albedo_offsets: bool = True

@@ -1,7 +1,7 @@
 """The phase that chooses a fit's light effects, between the first climb and the Laplace approximation.
 
 :class:`EffectPhases` is a mixin of :class:`~mcmcfit.fitting.chain_session.ChainSession`:
-the driver (:func:`mcmcfit.fitting.fit.drive_chains`) calls :meth:`~EffectPhases.choose_effects`
+the driver (:func:`mcmcfit.fitting.driver.drive_chains`) calls :meth:`~EffectPhases.choose_effects`
 on every chain after the climbs, takes the best chain's decision and hands it
 to every chain with :meth:`~EffectPhases.set_effects`, so that all chains sample
 one posterior. With the directional light on, each chain starts it from its own

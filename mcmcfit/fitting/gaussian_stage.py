@@ -2,7 +2,7 @@
 
 :class:`GaussianPhases` holds the phases a chain runs before the Gaussian
 sampler's warm-up (:class:`~mcmcfit.fitting.chain_session.ChainSession` has
-them; the driver, :mod:`mcmcfit.fitting.fit`, calls them in lockstep):
+them; the driver, :mod:`mcmcfit.fitting.driver`, calls them in lockstep):
 
 1. :meth:`~GaussianPhases.climb` -- Levenberg-Marquardt to the mode
    (:mod:`mcmcfit.fitting.mode`) from the landmark fit: first the appearance
@@ -17,8 +17,12 @@ them; the driver, :mod:`mcmcfit.fitting.fit`, calls them in lockstep):
    approximation at the mode (with ``metric="hessian"`` widened where the
    posterior's curvature is flatter: :mod:`mcmcfit.fitting.curvature_widening`),
    the moves built on it, the chain started from a draw of it;
-4. optionally (``widen``), during the warm-up, :meth:`~GaussianPhases.warmup_draws`
-   and :meth:`~GaussianPhases.widen` -- the approximation widened where the
+4. during the warm-up (:class:`~mcmcfit.fitting.draw_phases.DrawPhases`),
+   :meth:`~GaussianPhases.recentre` -- a chain whose best warm-up draw beats its
+   mode by more than :data:`~mcmcfit.fitting.mode.ADOPT_GAP` climbs again from it
+   and refits the approximation there (:meth:`~GaussianPhases._approximate`); and
+   optionally (``widen``) :meth:`~GaussianPhases.warmup_draws` and
+   :meth:`~GaussianPhases.widen` -- the approximation widened where the
    chains' warm-up draws are wider (:mod:`proposals.laplace.widening`).
 
 Helpers:
@@ -30,14 +34,13 @@ Helpers:
   region's residuals).
 
 This module imports :mod:`albedo_model` (camera, params, scene_vector, render),
-:mod:`mcmcfit.fitting` (mode, problem), :mod:`mcmcfit.proposal_data.face_pixels`,
-:mod:`mcmcfit.sampling` (chain, kernel), :mod:`mcmcfit.targets` (background, curvature, noise_model) and
-:mod:`proposals.laplace` (coordinates, image_scale, schedule, widening).
+:mod:`mcmcfit.fitting` (curvature_widening, draw_phases, mode, problem),
+:mod:`mcmcfit.proposal_data.face_pixels`,
+:mod:`mcmcfit.sampling.kernel`, :mod:`mcmcfit.targets` (background, curvature, noise_model) and
+:mod:`proposals.laplace` (coordinates, image_scale, schedule).
 """
 
 from __future__ import annotations
-
-import time
 
 import numpy as np
 
@@ -46,33 +49,23 @@ from albedo_model.params import RenderParameter
 from albedo_model.render.renderer import Renderer
 from albedo_model.scene_vector import SceneLayout
 from mcmcfit.fitting.curvature_widening import curvature_widened, gradient_in_coordinates
-from mcmcfit.fitting.mode import ModeResult, find_mode, laplace, region_of
+from mcmcfit.fitting.draw_phases import DrawPhases
+from mcmcfit.fitting.mode import ADOPT_GAP, POLISH_STEPS, ModeResult, find_mode, laplace, region_of
 from mcmcfit.fitting.problem import build_posterior, provisional_noise
 from mcmcfit.proposal_data.face_pixels import unsaturated
-from mcmcfit.sampling.chain import ChainRecord, ChainRecorder
-from mcmcfit.sampling.kernel import init, run
+from mcmcfit.sampling.kernel import init
 from mcmcfit.targets.background import occluder_log_density
 from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.laplace.coordinates import SamplingCoordinates
 from proposals.laplace.schedule import GAUSSIAN_BLOCKS
 from proposals.laplace.image_scale import ImageScale, anchor_vertices
-from proposals.laplace.widening import widened_by_draws
 
-__all__ = ["ADOPT_GAP", "START_ERODE", "DrawPhases", "GaussianPhases", "appearance_coordinates",
+__all__ = ["START_ERODE", "GaussianPhases", "appearance_coordinates",
            "recentred", "region_and_noise", "sampling_coordinates"]
-
-#: Log-density gap (nats) beyond which a chain climbs from the best chain's mode instead of its
-#: own: a local mode that much lower (at similar curvature) holds under e^-10 of the mass, and
-#: a chain started there spends the fit finding its way out.
-ADOPT_GAP = 10.0
 
 #: Pixels the first climbs' region keeps inside the landmark fit's outline (a few px off at 250^2).
 START_ERODE = 8
-
-#: Levenberg-Marquardt steps over every region pixel that end each climb under the final
-#: posterior (the subset steps before them are noisy near the mode).
-POLISH_STEPS = 3
 
 
 def recentred(params: RenderParameter) -> RenderParameter:
@@ -132,101 +125,6 @@ def region_and_noise(renderer: Renderer, target_linear: np.ndarray, params: Rend
     mask = np.asarray(region, bool).reshape(h, w)
     bg = None if background is None else np.asarray(background, np.float64).reshape(h, w)
     return estimate_noise(np.asarray(target_linear), rendered.image, mask, background=bg)
-
-
-class DrawPhases:
-    """A chain's kept draws, its draws in sampling coordinates, and widening from them (a mixin).
-
-    Reads the session's ``problem``, ``cfg``, ``rng``, ``state``, ``proposal``,
-    ``chain_target`` (the target its chain runs on), ``coords``, ``mode``, ``approx``,
-    ``_warm``, ``_kept`` (recorders) and ``_t_warm``, ``_t_kept``, and calls its
-    ``_check`` and ``_build_proposal``: shared by a single fit's
-    (:class:`~mcmcfit.fitting.chain_session.ChainSession`) and a joint fit's
-    (:class:`~mcmcfit.fitting.joint_session.JointChainSession`) sessions.
-    """
-
-    def draw(self, n_steps: int) -> ChainRecord:
-        """Run ``n_steps`` kept steps (continuing the chain) and return the kept record so far."""
-        if self._kept is None:
-            self._kept = ChainRecorder(self.problem.layout, 0, self.cfg.thin, self.state,
-                                       stage="image")
-        self._advance(self._kept, n_steps)
-        return self._kept.record(self._t_kept)
-
-    def _advance(self, recorder: ChainRecorder, n: int) -> None:
-        """Run ``n`` steps of the chain on ``self.chain_target``, recorded (and checked)."""
-        offset = recorder.steps_done
-        recorder.extend(n)
-        check = self._check()
-        t0 = time.perf_counter()
-
-        def callback(i, s, info):
-            recorder(offset + i, s, info)
-            if check is not None:
-                check(offset + i, s, info)
-
-        self.state = run(self.rng, self.state, self.chain_target, self.proposal, n, image=True,
-                         callback=callback)
-        dt = time.perf_counter() - t0
-        if recorder is self._warm:
-            self._t_warm += dt
-        else:
-            self._t_kept += dt
-
-    def warmup_draws(self, fraction: float = 0.5) -> np.ndarray:
-        """Return the last ``fraction`` of the warm-up's draws in sampling coordinates (n, d)."""
-        return self._draws_of(self._warm, fraction)
-
-    def kept_draws(self, fraction: float = 0.75) -> np.ndarray:
-        """Return the last ``fraction`` of the kept draws so far in sampling coordinates (n, d)."""
-        return self._draws_of(self._kept, fraction)
-
-    def _draws_of(self, recorder, fraction: float) -> np.ndarray:
-        if recorder is None or self.coords is None:
-            return np.zeros((0, 0 if self.coords is None else self.coords.size))
-        rec = recorder.record()
-        tail = rec.samples[int(rec.samples.shape[0] * (1.0 - fraction)):]
-        layout, base = self.problem.layout, self.mode.params
-        return np.array([self.coords.u_of(layout.from_vector(v, base)) for v in tail])
-
-    def restart_kept(self) -> int:
-        """Make the kept draws so far warm-up (the sampler is about to change); return their number.
-
-        The next :meth:`draw` starts a new kept chain from the current state.
-        """
-        if self._kept is None:
-            return 0
-        n = self._kept.steps_done
-        if self._warm is None:
-            self._warm, self._t_warm = self._kept, self._t_kept
-            self._warm.stage = "warmup"
-        else:
-            self._warm.absorb(self._kept)
-            self._t_warm += self._t_kept
-        self._kept, self._t_kept = None, 0.0
-        return n
-
-    def widen(self, draws: list[np.ndarray], effective_fraction: float = 0.25) -> dict:
-        """Widen the Gaussian approximation where warm-up ``draws`` (one array per chain) are wider.
-
-        See :func:`proposals.laplace.widening.widened_by_draws`; the moves are
-        rebuilt on the widened approximation (their step multipliers are
-        adapted again by the rest of the warm-up).
-
-        Returns
-        -------
-        dict
-            ``ratios`` (variance ratios of the widened directions), ``largest``
-            (largest whitened eigenvalue), ``edge`` (the noise edge), ``n_draws``.
-        """
-        if self.approx is None:
-            return {"ratios": [], "largest": None, "edge": None, "n_draws": 0}
-        found = widened_by_draws(self.approx, [np.asarray(d) for d in draws],
-                                 effective_fraction=effective_fraction)
-        self.approx = found.approx
-        self._build_proposal()
-        return {"ratios": [float(r) for r in found.ratios], "largest": found.largest,
-                "edge": found.edge, "n_draws": found.n_draws}
 
 
 class GaussianPhases(DrawPhases):
@@ -376,6 +274,20 @@ class GaussianPhases(DrawPhases):
             self.state = init(self.mode.params, self.posterior.face, image=True)
             return {"log_density": float(self.state.log_posterior),
                     "dimension": self.coords.size}
+        metric = self._approximate()
+        mode = self.mode.params
+        start = self.coords.params_of(self.approx.draw(self.rng), mode)
+        self.state = init(start, self.posterior.face, image=True)
+        if not np.isfinite(self.state.log_posterior):
+            self.state = init(mode, self.posterior.face, image=True)
+        return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size,
+                "metric": metric}
+
+    def _climb_posterior(self):
+        return self.posterior
+
+    def _approximate(self) -> dict | None:
+        """Set the coordinates, Laplace approximation and moves at the mode; return the metric."""
         curvature = PosteriorCurvature(self.posterior.face, self.coords.layout,
                                        caster=self._scene_caster())
         mode = self.mode.params
@@ -383,7 +295,8 @@ class GaussianPhases(DrawPhases):
             anchors = anchor_vertices(self.problem.model.triangles,
                                       curvature.region_triangles(mode))
             scale = ImageScale.of_model(self.problem.model, mode, anchors)
-            self.coords = sampling_coordinates(mode, scale, inverse_distance=self.cfg.inverse_distance)
+            self.coords = sampling_coordinates(mode, scale,
+                                               inverse_distance=self.cfg.inverse_distance)
             self._hmc_gradient = None  # a function of the coordinates just replaced
         self.approx = laplace(curvature, self.coords, mode)
         metric = None
@@ -392,9 +305,4 @@ class GaussianPhases(DrawPhases):
                 gradient_in_coordinates(self._coordinate_gradient(), self.coords, mode),
                 self.approx, self.coords.u_of(mode))
         self._build_proposal()
-        start = self.coords.params_of(self.approx.draw(self.rng), mode)
-        self.state = init(start, self.posterior.face, image=True)
-        if not np.isfinite(self.state.log_posterior):
-            self.state = init(mode, self.posterior.face, image=True)
-        return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size,
-                "metric": metric}
+        return metric

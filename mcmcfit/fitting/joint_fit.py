@@ -4,7 +4,7 @@
 does, guesses each image's pose from its landmarks, and runs the chains of a
 :class:`~mcmcfit.fitting.joint_problem.JointProblem` (sessions:
 :class:`~mcmcfit.fitting.joint_session.JointChainSession`) through the same
-driver as a single fit (:func:`mcmcfit.fitting.fit.drive_chains`: the climb to
+driver as a single fit (:func:`mcmcfit.fitting.driver.drive_chains`: the climb to
 the mode, warm-up, kept draws until converged). The result is a
 :class:`~mcmcfit.fitting.result.FitResult` whose layout is the joint one
 (:class:`~mcmcfit.sampling.joint_layout.JointParamLayout`) and whose parameters
@@ -33,7 +33,8 @@ from albedo_model.errors import InputError
 from albedo_model.model import MorphableModel
 from mcmcfit.fitting.chain_pool import chain_pool
 from mcmcfit.fitting.config import FitConfig
-from mcmcfit.fitting.fit import BLACK_LEVEL, Progress, assemble_result, drive_chains
+from mcmcfit.fitting.driver import Progress, drive_chains
+from mcmcfit.fitting.fit import BLACK_LEVEL, assemble_result
 from mcmcfit.fitting.initialisation import check_fit_inputs, initial_params, pose_from_landmarks
 from mcmcfit.fitting.joint_problem import JointProblem
 from mcmcfit.fitting.problem import FitProblem, landmark_factor

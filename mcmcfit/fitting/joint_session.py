@@ -2,7 +2,7 @@
 
 :class:`JointChainSession` answers the same calls as
 :class:`~mcmcfit.fitting.chain_session.ChainSession` (the fit driver,
-:func:`mcmcfit.fitting.fit.drive_chains`, runs it unchanged, in this process or
+:func:`mcmcfit.fitting.driver.drive_chains`, runs it unchanged, in this process or
 in worker processes), with the Gaussian sampler only:
 
 1. ``landmarks`` -- each image's landmark stage, as a single fit's (several
@@ -39,12 +39,13 @@ from albedo_model.render.pixel_cast import SceneCaster
 from mcmcfit.fitting.adaptation import MIN_PROPOSED, adapt_scales, family_counts
 from mcmcfit.fitting.chain_session import _with_solved_light, use_compilation_cache
 from mcmcfit.fitting.gaussian_stage import (
-    ADOPT_GAP, POLISH_STEPS, START_ERODE, DrawPhases, recentred, region_and_noise,
+    START_ERODE, recentred, region_and_noise,
     sampling_coordinates,
 )
 from mcmcfit.fitting.joint_problem import JointNoise, JointProblem
 from mcmcfit.fitting.landmark_starts import DEFAULT_STARTS, landmark_stage
-from mcmcfit.fitting.mode import ModeResult, find_mode, laplace, region_of
+from mcmcfit.fitting.draw_phases import DrawPhases
+from mcmcfit.fitting.mode import ADOPT_GAP, POLISH_STEPS, ModeResult, find_mode, laplace, region_of
 from mcmcfit.fitting.problem import build_posterior, provisional_noise
 from mcmcfit.proposal_data.albedo import RenderAlbedoData
 from mcmcfit.proposal_data.face_pixels import unsaturated
@@ -286,6 +287,19 @@ class JointChainSession(DrawPhases):
 
     def prepare_gaussian(self) -> dict:
         """Fit the joint Laplace approximation, build the moves, start from a draw of it."""
+        self._approximate()
+        mode = self.mode.params
+        start = self.coords.params_of(self.approx.draw(self.rng), mode)
+        self.state = init(start, self.target, image=True)
+        if not np.isfinite(self.state.log_posterior):
+            self.state = init(mode, self.target, image=True)
+        return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size}
+
+    def _climb_posterior(self):
+        return self.posts
+
+    def _approximate(self) -> None:
+        """Set the joint coordinates, the Laplace approximation and the moves at ``self.mode``."""
         mode = self.mode.params
         if self.cfg.image_size and not mode.images[0].camera.orthographic:
             images = []
@@ -300,11 +314,6 @@ class JointChainSession(DrawPhases):
         self._hmc_gradient = None
         self.approx = laplace(self._curvature(), self.coords, mode)
         self._build_proposal()
-        start = self.coords.params_of(self.approx.draw(self.rng), mode)
-        self.state = init(start, self.target, image=True)
-        if not np.isfinite(self.state.log_posterior):
-            self.state = init(mode, self.target, image=True)
-        return {"log_density": float(self.state.log_posterior), "dimension": self.coords.size}
 
     # -- warm-up, draws, widening ------------------------------------------------------
     def warmup(self, n_steps: int, *, window: int, adapt: bool = True) -> dict[str, float]:

@@ -35,7 +35,16 @@ from mcmcfit.targets.face import FaceTarget
 from proposals.laplace.coordinates import SamplingCoordinates
 from proposals.laplace.moves import GaussianApproximation
 
-__all__ = ["ModeResult", "find_mode", "laplace", "region_of"]
+__all__ = ["ADOPT_GAP", "POLISH_STEPS", "ModeResult", "find_mode", "laplace", "region_of"]
+
+#: Log-density gap (nats) beyond which a chain climbs from the best chain's mode instead of its
+#: own: a local mode that much lower (at similar curvature) holds under e^-10 of the mass, and
+#: a chain started there spends the fit finding its way out.
+ADOPT_GAP = 10.0
+
+#: Levenberg-Marquardt steps over every region pixel that end each climb under the final
+#: posterior (the subset steps before them are noisy near the mode).
+POLISH_STEPS = 3
 
 #: Region pixels a Levenberg-Marquardt step reads at most (a random subset, counted up).
 STEP_PIXELS = 4000

@@ -97,7 +97,7 @@ def test_widening_splits_the_warmup_and_is_recorded(case):
 @pytest.mark.parametrize("widens", [False, True])
 def test_widening_from_kept_draws_restarts_them_only_when_it_widens(case, monkeypatch, widens):
     """``widen_at``: widened kept draws become warm-up and the kept chain starts again."""
-    import mcmcfit.fitting.gaussian_stage as stage
+    import mcmcfit.fitting.draw_phases as stage
     from proposals.laplace.widening import Widening
 
     def fake(approx, draws, **kw):
