@@ -123,7 +123,7 @@ class FitConfig:
         beats its mode by more than 10 nats climbs again from that draw, and the
         Laplace approximation and the moves are rebuilt at the new mode (a climb
         can stop short on a long ridge); a re-centring in the last window adds
-        one more window of warm-up (at most 3 re-centrings;
+        one more window of warm-up (at most 3 re-centrings; only with ``adapt``;
         :meth:`~mcmcfit.fitting.draw_phases.DrawPhases.recentre`).
     widen : bool
         Gaussian sampler: at 60 % of the warm-up, widen the Laplace

@@ -9,6 +9,7 @@ import pytest
 
 from albedo_model.io.model_files import load_model
 from mcmcfit.fitting.fit import fit
+from mcmcfit.fitting.mode import ADOPT_GAP
 from mcmcfit.outputs.accuracy import albedo_columns
 from mcmcfit.fitting.config import FitConfig
 from mcmcfit.outputs.posterior import albedo_posterior
@@ -74,17 +75,20 @@ def test_the_first_climb_holds_the_colour_transform(default_model):
 
 
 @pytest.mark.slow
-def test_a_climb_that_stops_short_is_recentred_in_the_warmup(default_model):
-    """The same face: the climb ends ~240 nats below the peak (880 mm from the camera where the
-    truth is 1,175), so the Crank-Nicolson moves about it were accepted 1 % of the time and the
-    geometry blocks never (2 x 4,000 kept steps: not converged, bulk-ESS 12). The warm-up finds
-    the higher ground; climbing again from it puts the approximation there (~2 min on 2 cores).
+def test_the_approximation_sits_at_the_peak_after_the_warmup(default_model):
+    """The same face: in `mcmcfit demo --seed 2` (2 chains) both climbs ended ~240 nats below the
+    peak (880 mm from the camera where the truth is 1,175), so the Crank-Nicolson moves about it
+    were accepted 1 % of the time and the geometry blocks never (not converged in 10,000 kept
+    steps). Whether a climb stops short depends on the chain's path (floating point); whatever
+    the path, after the warm-up's re-centring no chain's best draw beats its mode by the gap and
+    the moves built on the approximation are accepted (~2 min on 2 cores).
     """
     case = synthetic_case(default_model, seed=2, size=250)
-    cfg = FitConfig(steps=250, warmup_steps=250, landmark_steps=5000, chains=1, parallel=False,
+    cfg = FitConfig(steps=250, warmup_steps=250, landmark_steps=5000, chains=2, parallel=True,
                     stop_when_converged=False)
     res = fit(case.image, case.landmarks, default_model, config=cfg, seed=2)
-    first = res.stopping["recentring"][0]
-    assert first["moved"] == [True] and first["gains"][0] > 100.0
+    checks = res.stopping["recentring"]
+    assert all(g <= ADOPT_GAP for g in checks[-1]["gains"]), checks
+    assert all(m for c in checks[:-1] for m, g in zip(c["moved"], c["gains"]) if g > ADOPT_GAP)
     rates = {k: v.acceptance_rate for k, v in res.acceptance.items()}
-    assert rates["pcn"] > 0.1 and rates["gaussian-geometry"] > 0.1, rates
+    assert rates["pcn"] > 0.1 and rates["gaussian-geometry"] > 0.1, (rates, checks)
