@@ -117,17 +117,18 @@ class DrawPhases:
         if self._warm is None or self.approx is None:
             return {"moved": False, "gain": None}
         target = self.chain_target
-        best = self._warm.record().best_posterior
+        best = self._warm.best_posterior
         at_mode = init(self.mode.params, target, image=True).log_posterior
         gain = float(best.log_posterior - at_mode)
-        if not gain > gap:
-            return {"moved": False, "gain": gain}
-        current = self.state.params
-        self.mode = self._climb(self._climb_posterior(), best.params, self.cfg.mode_steps,
-                                polish=POLISH_STEPS)
-        self._approximate()
-        self.state = init(current, target, image=True)  # the climb moved the renderer's state
-        return {"moved": True, "gain": gain, "log_density": float(self.mode.log_density)}
+        out = {"moved": False, "gain": gain}
+        if gain > gap:
+            self.mode = self._climb(self._climb_posterior(), best.params, self.cfg.mode_steps,
+                                    polish=POLISH_STEPS)
+            self._approximate()
+            out.update(moved=True, log_density=float(self.mode.log_density))
+        # the renders of the mode (and the climb) moved the renderer's scene: restore the chain's
+        self.state = init(self.state.params, target, image=True)
+        return out
 
     def widen(self, draws: list[np.ndarray], effective_fraction: float = 0.25) -> dict:
         """Widen the Gaussian approximation where warm-up ``draws`` (one array per chain) are wider.

@@ -25,8 +25,8 @@ class _Session(DrawPhases):
         self.approx = "approx"
         self.mode = SimpleNamespace(params="mode", log_density=at_mode)
         self.state = SimpleNamespace(params="current")
-        best_sample = SimpleNamespace(params="best", log_posterior=best)
-        self._warm = SimpleNamespace(record=lambda: SimpleNamespace(best_posterior=best_sample))
+        self._warm = SimpleNamespace(best_posterior=SimpleNamespace(params="best",
+                                                                     log_posterior=best))
         self.values = {"mode": at_mode, "climbed": best + 5.0, "current": best - 1.0}
         self.calls: list[tuple] = []
 
