@@ -295,7 +295,7 @@ def _eye_rays_cached(fx: float, fy: float, cx: float, cy: float, n: float, ortho
 
 def camera_rays(camera: Camera, image_size: ImageSize, pose: Pose, view: View, *,
                 out: tuple[np.ndarray, np.ndarray] | None = None,
-                ) -> tuple[np.ndarray, np.ndarray]:
+                pixels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One ray per pixel, in the model frame, ready for the ray caster.
 
     Parameters
@@ -303,11 +303,14 @@ def camera_rays(camera: Camera, image_size: ImageSize, pose: Pose, view: View, *
     camera, image_size, pose, view
         Scene parameters.
     out : pair of (H*W, 3) float32 C-contiguous arrays, optional
-        Preallocated ``(origins, directions)`` to fill (no allocation).
+        Preallocated ``(origins, directions)`` to fill (no allocation); with
+        ``pixels``, (P, 3) each.
+    pixels : (P,) int array, optional
+        Row-major indices of the pixels whose rays to form (default all, in order).
 
     Returns
     -------
-    origins : (H*W, 3) float32, model frame
+    origins : (H*W, 3) float32, model frame (or (P, 3): the ``pixels``' rays)
         Points on the near plane (eye z = -near).
     directions : (H*W, 3) float32, model frame
         Not normalised: the eye-frame direction has z component -1, so the ray
@@ -323,6 +326,8 @@ def camera_rays(camera: Camera, image_size: ImageSize, pose: Pose, view: View, *
     change costs two (H*W, 4) x (4, 3) float32 products.
     """
     org, dirs = _eye_rays(camera, image_size)
+    if pixels is not None:
+        org, dirs = org[pixels], dirs[pixels]
     r, t, s = eye_from_model(pose, view)
     # row vectors: p_model = p_eye @ (R / s) - t @ R / s
     m = np.empty((4, 3), np.float32)

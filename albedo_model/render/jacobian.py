@@ -64,12 +64,12 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
     light = packed_slice("sh")
 
     def vertices(x, scene: SceneInputs):
-        flat = scene.shape_basis @ x[sl["shape"]] + scene.expression_basis @ x[sl["expression"]]
+        flat = x[sl["shape"]] @ scene.shape_basis_t + x[sl["expression"]] @ scene.expression_basis_t
         v = scene.mean + flat.reshape(-1, 3)
         return v, vertex_normal_columns(v, scene.triangles)
 
-    def albedo_table(x, albedo_mean, albedo_basis):
-        return albedo_mean + (albedo_basis @ x[sl["albedo"]]).reshape(albedo_mean.shape)
+    def albedo_table(x, albedo_mean, albedo_basis_t):
+        return albedo_mean + (x[sl["albedo"]] @ albedo_basis_t).reshape(albedo_mean.shape)
 
     def camera(x, scene: SceneInputs):
         w, h = scene.camera[2], scene.camera[3]
@@ -107,7 +107,7 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
         move no vertex (zeros).
         """
         n = scene.mean.shape[0]
-        dv = jnp.concatenate([scene.shape_basis, scene.expression_basis], axis=1)
+        dv = jnp.concatenate([scene.shape_basis_t, scene.expression_basis_t], axis=0).T
         dv = dv.reshape(n, 3, geo.size)
         dn = vertex_normal_tangents(v, scene.triangles, dv)
         rest = n_geometry - geo.size
@@ -142,7 +142,7 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
                         in_axes=((-1, 0),), out_axes=-1)((dattrs, dx))
 
     @jax.jit
-    def gaussian_value_and_grad(x, scene, hits, albedo_mean, albedo_basis, target, weight):
+    def gaussian_value_and_grad(x, scene, hits, albedo_mean, albedo_basis_t, target, weight):
         """Gaussian read-out ``-sum weight ||R - target||^2 / 2`` and its gradient in ``x``.
 
         One reverse-mode program over all the stages: unlike the forward-mode
@@ -152,19 +152,19 @@ def _stages(layout: SceneLayout, effects: Effects, orthographic: bool):
         """
         def value(xx):
             v, normals = vertices(xx, scene)
-            attrs = attributes(v, normals, albedo_table(xx, albedo_mean, albedo_basis), xx,
+            attrs = attributes(v, normals, albedo_table(xx, albedo_mean, albedo_basis_t), xx,
                                scene, hits)
             r = shading(attrs, xx, scene, hits) - target
             return -0.5 * jnp.sum(weight * r * r)
         return jax.value_and_grad(value)(x)
 
     @jax.jit
-    def robust_value_and_grad(x, scene, hits, albedo_mean, albedo_basis, target, weight,
+    def robust_value_and_grad(x, scene, hits, albedo_mean, albedo_basis_t, target, weight,
                               outlier, inv_var):
         """Robust read-out ``sum weight log(exp(-inv_var ||R - target||^2 / 2) + exp(outlier))``."""
         def value(xx):
             v, normals = vertices(xx, scene)
-            attrs = attributes(v, normals, albedo_table(xx, albedo_mean, albedo_basis), xx,
+            attrs = attributes(v, normals, albedo_table(xx, albedo_mean, albedo_basis_t), xx,
                                scene, hits)
             r = shading(attrs, xx, scene, hits) - target
             return jnp.sum(weight * jnp.logaddexp(-0.5 * inv_var * jnp.sum(r * r, axis=0),
@@ -224,7 +224,9 @@ class PixelJacobian:
                      else np.zeros((n, 3, k)))
         self._albedo_mean = jnp.asarray(np.concatenate(mean, axis=1), jnp.float32)
         columns = np.concatenate(basis, axis=1)  # (n, 6, k)
-        self._albedo_basis = jnp.asarray(columns.reshape(n * 6, k), jnp.float32)
+        # transposed (k, 6n), as the scene's shape basis (SceneInputs)
+        self._albedo_basis_t = jnp.asarray(np.ascontiguousarray(columns.reshape(n * 6, k).T),
+                                           jnp.float32)
         self._albedo_columns = jnp.asarray(columns, jnp.float32)
         sl = layout.slices()
         self._geometry = np.r_[sl["shape"], sl["expression"], sl["angles"], sl["translation"],
@@ -259,7 +261,7 @@ class PixelJacobian:
         (vertices, table, attributes, shading, *_), scene, x = self._prepare(params)
         hits = hits._replace(pixels=None)
         v, normals = vertices(x, scene)
-        attrs = attributes(v, normals, table(x, self._albedo_mean, self._albedo_basis), x,
+        attrs = attributes(v, normals, table(x, self._albedo_mean, self._albedo_basis_t), x,
                            scene, hits)
         return np.asarray(shading(attrs, x, scene, hits))
 
@@ -271,7 +273,7 @@ class PixelJacobian:
          shading_t, *_) = stages
         hits = hits._replace(pixels=None)
         v, normals = vertices(x, scene)
-        tab = table(x, self._albedo_mean, self._albedo_basis)
+        tab = table(x, self._albedo_mean, self._albedo_basis_t)
         dv, dn = vertex_t(v, scene)  # (n, 3, G), three (n, G)
         attrs = attributes(v, normals, tab, x, scene, hits)
         dattrs = attribute_t(v, normals, tab, x, scene, hits, dv, dn, self._dx2)
@@ -305,7 +307,7 @@ class PixelJacobian:
         """
         stages, scene, x = self._prepare(params)
         value, grad = stages[8](x, scene, hits._replace(pixels=None), self._albedo_mean,
-                                self._albedo_basis, target, weight)
+                                self._albedo_basis_t, target, weight)
         return float(value), np.asarray(grad, np.float64)
 
     def robust_value_and_grad(self, params: RenderParameter, hits: FixedHits, target: np.ndarray,
@@ -320,7 +322,7 @@ class PixelJacobian:
         """
         stages, scene, x = self._prepare(params)
         value, grad = stages[9](x, scene, hits._replace(pixels=None), self._albedo_mean,
-                                self._albedo_basis, target, weight, outlier,
+                                self._albedo_basis_t, target, weight, outlier,
                                 jnp.float32(inv_var))
         return float(value), np.asarray(grad, np.float64)
 

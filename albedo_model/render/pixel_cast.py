@@ -40,8 +40,8 @@ class SceneCaster:
         self._caster: RayCaster | None = None
         self._rays: tuple[np.ndarray, np.ndarray] | None = None
 
-    def _scene(self, params: RenderParameter) -> tuple[int, int]:
-        """Move the private scene to ``params``' geometry and its rays to its camera; (W, H)."""
+    def _scene(self, params: RenderParameter) -> None:
+        """Move the private scene to ``params``' geometry."""
         p = params
         v32 = np.ascontiguousarray(
             self.model.shape_instance(p.momo.shape, p.momo.expression), np.float32)
@@ -50,11 +50,12 @@ class SceneCaster:
         else:
             self._caster.update_vertices(v32)
         self._caster_vertices = v32.reshape(-1, 3)
-        w, h = int(p.image_size.width), int(p.image_size.height)
-        if self._rays is None or len(self._rays[0]) != w * h:
-            self._rays = (np.empty((w * h, 3), np.float32), np.empty((w * h, 3), np.float32))
-        camera_rays(p.camera, p.image_size, p.pose, p.view, out=self._rays)
-        return w, h
+
+    def _cast_rays(self, params: RenderParameter, pixels: np.ndarray):
+        """Cast the rays of ``pixels`` only (their rays alone are formed) into the scene."""
+        p = params
+        o, d = camera_rays(p.camera, p.image_size, p.pose, p.view, pixels=pixels)
+        return self._caster.cast(o, d, tfar=float(p.camera.far - p.camera.near))
 
     def cast_pixels(self, params: RenderParameter, pixels: np.ndarray) -> np.ndarray:
         """Return the triangle (-1: miss) seen by each of ``pixels`` (row-major) at ``params``.
@@ -63,10 +64,7 @@ class SceneCaster:
         triangles (about one ray in 10^5 reports a miss on a closed surface).
         """
         self._scene(params)
-        o, d = self._rays
-        hits = self._caster.cast(o[pixels], d[pixels],
-                                 tfar=float(params.camera.far - params.camera.near))
-        return np.asarray(hits.prim_id)
+        return np.asarray(self._cast_rays(params, pixels).prim_id)
 
     def shadow(self, params: RenderParameter, pixels: np.ndarray, *, rays: int = 1,
                spread_deg: float = 0.0) -> np.ndarray:
@@ -77,9 +75,7 @@ class SceneCaster:
         (:func:`~albedo_model.render.visibility.directional_visibility`).
         """
         self._scene(params)
-        o, d = self._rays
-        hits = self._caster.cast(o[pixels], d[pixels],
-                                 tfar=float(params.camera.far - params.camera.near))
+        hits = self._cast_rays(params, pixels)
         vertices = self._caster_vertices
         return directional_visibility(hits, vertices, self.model.triangles,
                                       params.pose, params.directional_light.direction,
@@ -88,7 +84,11 @@ class SceneCaster:
     def cast(self, params: RenderParameter) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(prim_id (H W,) int32, t (H W,) float32)`` of a ray cast at ``params``."""
         p = params
-        w, h = self._scene(p)
+        self._scene(p)
+        w, h = int(p.image_size.width), int(p.image_size.height)
+        if self._rays is None or len(self._rays[0]) != w * h:
+            self._rays = (np.empty((w * h, 3), np.float32), np.empty((w * h, 3), np.float32))
+        camera_rays(p.camera, p.image_size, p.pose, p.view, out=self._rays)
         window = pixel_window(self._caster.bounds, p.camera, p.image_size, p.pose, p.view)
         hits = self._caster.cast(*self._rays, tfar=float(p.camera.far - p.camera.near),
                                  image_shape=(h, w), window=window)

@@ -146,6 +146,16 @@ def test_camera_rays_out_buffers_and_cache_independence():
     assert not np.array_equal(o2, o3)
 
 
+def test_camera_rays_of_some_pixels_are_those_rows_of_all():
+    camera, size, view, pose = Camera(), ImageSize(16, 12), View(), Pose(yaw=0.2, pitch=-0.1)
+    pixels = np.array([191, 0, 17, 17, 100])  # any order, repeats allowed
+    o, d = cam.camera_rays(camera, size, pose, view)
+    os_, ds = cam.camera_rays(camera, size, pose, view, pixels=pixels)
+    assert os_.shape == ds.shape == (5, 3)
+    np.testing.assert_allclose(os_, o[pixels], rtol=1e-6, atol=1e-4)
+    np.testing.assert_allclose(ds, d[pixels], rtol=1e-6, atol=1e-6)
+
+
 def test_unproject_inverts_project():
     rng = np.random.default_rng(0)
     pts = rng.normal(0, 50, (20, 3))
