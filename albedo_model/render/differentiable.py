@@ -92,11 +92,8 @@ class SceneInputs(NamedTuple):
     Attributes
     ----------
     mean : (n, 3) shape + expression mean, model frame (mm)
-    shape_basis_t, expression_basis_t : (ks, 3n), (ke, 3n) scaled bases, transposed
-        (interleaved columns). Row-major in this orientation, both the product
-        ``coefficients @ basis_t`` and its pullback ``basis_t @ cotangent`` read
-        the basis contiguously; XLA-CPU's pullback of ``basis @ coefficients``
-        took 4-7x its forward time (~5 ms per gradient at the default model's size).
+    shape_basis_t, expression_basis_t : (ks, 3n), (ke, 3n) scaled bases, transposed: XLA-CPU
+        pulls ``c @ basis_t`` back contiguously (``basis @ c``: 4-7x its forward time).
     triangles : (m, 3) int32
     albedo : (n, 6) per-vertex diffuse and specular albedo (the scene's coefficients)
     packed : (PACKED_SIZE,) packed shading scalars (light, colour transform, background)
@@ -312,10 +309,9 @@ def build_value_and_grad(effects: Effects, orthographic: bool, readout):
 
     Notes
     -----
-    Four jitted programs chained by hand: instance and normals; pixel attributes;
-    shading + read-out with its gradient in the attributes; the attributes' and the
-    instance's vector-Jacobian products. One fused program gives the same numbers
-    but takes XLA-CPU 15-30 s to compile; the four take a few seconds.
+    Four jitted programs chained by hand (instance and normals; pixel attributes; shading
+    + read-out with its gradient; the two vector-Jacobian products): one fused program
+    gives the same numbers but takes XLA-CPU 15-30 s to compile, the four a few seconds.
     """
     forward, attrs_forward, attrs_backward, instance_backward = _stages(effects, orthographic)
 
@@ -373,10 +369,9 @@ class DifferentiableModel:
                 eb = m.expression.scaled_basis[:, :ke]
             if ks > m.shape.rank or eb.shape[1] != ke:
                 raise InputError(f"{ks} shape / {ke} expression coefficients exceed the model's")
-            self._device[key] = (jnp.asarray(mean.reshape(-1, 3), dtype),
-                                 jnp.asarray(np.ascontiguousarray(m.shape.scaled_basis[:, :ks].T),
-                                             dtype),
-                                 jnp.asarray(np.ascontiguousarray(eb.T), dtype),
+            dev = functools.partial(jnp.asarray, dtype=dtype)  # .T.copy(): row-major (k, 3n)
+            sb = m.shape.scaled_basis[:, :ks]
+            self._device[key] = (dev(mean.reshape(-1, 3)), dev(sb.T.copy()), dev(eb.T.copy()),
                                  jnp.asarray(m.triangles, jnp.int32))
         return self._device[key]
 
