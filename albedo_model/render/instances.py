@@ -114,7 +114,8 @@ class InstanceUpdater:
             return "full"
         return idx.astype(np.int32), (new[idx] - old[idx]).astype(np.float32)
 
-    def _transposed(self, parts: tuple[PCAPart, ...]) -> np.ndarray:
+    def _stacked(self, parts: tuple[PCAPart, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """(sum of dims,) float32 mean and (k, sum of dims) float32 scaled basis, transposed."""
         key = tuple(id(p) for p in parts)
         entry = self._basis_t.get(key)
         if entry is None:
@@ -123,12 +124,20 @@ class InstanceUpdater:
             for p in parts:
                 bt[:, start:start + p.dim] = p.scaled_basis.T
                 start += p.dim
-            entry = self._basis_t[key] = (parts, bt)
-        return entry[1]
+            mean = np.concatenate([p.mean for p in parts]).astype(np.float32)
+            entry = self._basis_t[key] = (parts, bt, mean)
+        return entry[2], entry[1]
 
-    @staticmethod
-    def instance(terms) -> np.ndarray:
-        """float32 instance computed in float64 from all coefficients.
+    def _transposed(self, parts: tuple[PCAPart, ...]) -> np.ndarray:
+        return self._stacked(parts)[1]
+
+    def instance(self, terms) -> np.ndarray:
+        """float32 instance computed from all coefficients.
+
+        ``mean + c @ basis_t`` in float32 over the transposed basis (read
+        contiguously, half the bytes of float64: the product is memory-bound,
+        2-6x faster than the float64 ``basis @ c``); within a few float32
+        roundings of the float64 instance.
 
         Parameters
         ----------
@@ -142,10 +151,10 @@ class InstanceUpdater:
         """
         total = None
         for parts, c in terms:
-            x = np.concatenate([p.instance(c) for p in parts]) if len(parts) > 1 \
-                else parts[0].instance(c)
+            mean, bt = self._stacked(parts)
+            x = mean + np.asarray(c, np.float32) @ bt
             total = x if total is None else total + x
-        return total.astype(np.float32)
+        return total
 
     def update(self, terms, inst: np.ndarray, count: int) -> tuple[np.ndarray, int]:
         """Compute the instance for the new coefficients from ``inst``, the one for the old ones.

@@ -212,6 +212,27 @@ def test_hmc_keeps_the_target(seed):
     assert target.calls <= 3 * 5000 + 1  # one gradient per leapfrog step, the ends cached
 
 
+@pytest.mark.parametrize("seed", SEEDS)
+def test_hmc_with_a_surrogate_gradient_keeps_the_target(seed):
+    """Kicks from another function of the position (here the gradient of a Gaussian 1.1x
+    wider than the target and off-centre, as a subsampled pixel gradient is another
+    function): the trajectory is still a volume-preserving involution and the exact
+    ratio keeps the target."""
+    c = _coords()
+    target = Target(c, seed)
+    other = target.approximation(seed + 7)
+    prec, mean = other.precision / 1.21, other.mean
+
+    def surrogate(params):
+        u = c.u_of(params)
+        return target.log_u(u), -prec @ (u - mean)
+
+    move = GaussianHMC(c, target.approximation(seed), surrogate, step=0.5, n_leapfrog=3)
+    samples, acc = run_chain(move, target.log_p, c.template, c.u_of, 6000, seed=seed)
+    assert 0.2 < acc < 1.0
+    _check(samples, target, burn=300)
+
+
 @pytest.mark.parametrize("failure", ["raises", "invalid", "inf"])
 def test_hmc_trajectory_leaving_the_domain_is_refused(failure):
     c = _coords()
