@@ -11,7 +11,9 @@ column index, as :meth:`PCAPart.update_instance` does).
 Instances are float32 (what the ray caster and the shader consume). Rounding
 of the incremental updates would drift over a long chain, so every
 ``refresh_every`` incremental updates the instance is recomputed from all
-coefficients in float64 (:meth:`InstanceUpdater.update` reports the count).
+coefficients (one float32 product over the transposed basis, within a few
+float32 roundings of the float64 instance; :meth:`InstanceUpdater.update`
+reports the count).
 
 :class:`ModelInstances` applies this to a morphable model: the shape +
 expression instance, and the diffuse (+ specular) albedo instance as one

@@ -1,4 +1,4 @@
-"""Block updates of float32 instances against full float64 instances."""
+"""Block updates of float32 instances against full float64 instances (within float32 rounding)."""
 
 from __future__ import annotations
 
