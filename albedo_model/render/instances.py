@@ -88,13 +88,13 @@ class InstanceUpdater:
 
     def __init__(self, refresh_every: int = 256):
         self.refresh_every = int(refresh_every)
-        # ids of the parts -> (parts, (k, sum of dims) float32 scaled basis, transposed);
-        # holding the parts keeps their ids valid
+        # ids of the parts -> (parts, (k, sum of dims) float32 scaled basis, transposed,
+        # (sum of dims,) float32 mean); holding the parts keeps their ids valid
         self._basis_t: dict[tuple[int, ...], tuple[tuple, np.ndarray]] = {}
 
     def transposed(self, parts: tuple[PCAPart, ...]) -> np.ndarray:
         """(k, sum of dims) float32 scaled basis of stacked parts, transposed (cached)."""
-        return self._transposed(parts)
+        return self._stacked(parts)[1]
 
     def plan(self, parts: tuple[PCAPart, ...], old: np.ndarray, new: np.ndarray,
              count: int) -> tuple[np.ndarray, np.ndarray] | str | None:
@@ -129,9 +129,6 @@ class InstanceUpdater:
             mean = np.concatenate([p.mean for p in parts]).astype(np.float32)
             entry = self._basis_t[key] = (parts, bt, mean)
         return entry[2], entry[1]
-
-    def _transposed(self, parts: tuple[PCAPart, ...]) -> np.ndarray:
-        return self._stacked(parts)[1]
 
     def instance(self, terms) -> np.ndarray:
         """float32 instance computed from all coefficients.
@@ -188,7 +185,7 @@ class InstanceUpdater:
         out = inst
         for parts, idx, old, new in changed:
             delta = (new[idx] - old[idx]).astype(np.float32)
-            bt = self._transposed(parts)
+            bt = self.transposed(parts)
             rows = bt[idx[0]:idx[-1] + 1] if idx[-1] - idx[0] + 1 == idx.size else bt[idx]
             out = out + delta @ rows
         return out, count + 1

@@ -215,8 +215,8 @@ def test_hmc_keeps_the_target(seed):
 @pytest.mark.parametrize("seed", SEEDS)
 def test_hmc_with_a_surrogate_gradient_keeps_the_target(seed):
     """Kicks from another function of the position (here the gradient of a Gaussian 1.1x
-    wider than the target and off-centre, as a subsampled pixel gradient is another
-    function): the trajectory is still a volume-preserving involution and the exact
+    wider than the target and off-centre, as the mode's-triangles gradient of
+    ``hmc_triangles="mode"`` is another function): the trajectory is still a volume-preserving involution and the exact
     ratio keeps the target."""
     c = _coords()
     target = Target(c, seed)
