@@ -84,16 +84,17 @@ class FitConfig:
         coordinate, of the Gaussian block moves (geometry, albedo, shading:
         :data:`proposals.laplace.schedule.BLOCK_SHARES`) and of the albedo's and the
         SH light's exact conditionals (half each).
-    hmc_weight, hmc_leapfrog : float, int
+    hmc_weight, hmc_leapfrog, hmc_random_steps : float, int, bool
         Gaussian sampler: top-level weight of the whitened HMC move of every
         coordinate (:class:`proposals.laplace.moves.GaussianHMC`; each of its
         ``hmc_leapfrog`` leapfrog steps is a ray cast and a gradient through the
         shading), 0 for none. Default 3 steps: at the adapted step (~0.45 in
         whitened units) a trajectory turns ~1.4 rad in a unit-variance direction,
-        close to the quarter period after which both a coordinate and its
-        square are decorrelated; 6 steps turned ~2.9 rad, nearly a half period,
-        which anticorrelates the coordinate but leaves its square (what the
-        folded R-hat and the tail-ESS read) almost unchanged.
+        near the quarter period that decorrelates a coordinate and its square;
+        6 steps turn ~2.9 rad, nearly a half period, which leaves the square
+        (what the folded R-hat and the tail-ESS read) almost unchanged. With
+        ``hmc_random_steps`` each move draws its number of steps uniformly
+        from 1 to ``2 hmc_leapfrog - 1`` (same mean cost, no fixed period).
     hmc_triangles : {"cast", "mode"}
         Gaussian sampler: the triangles the HMC gradient renders each region
         pixel with: those a ray cast at the point sees (``"cast"``: the exact
@@ -292,6 +293,7 @@ class FitConfig:
     conditional_weight: float = 0.1
     hmc_weight: float = 0.3
     hmc_leapfrog: int = 3
+    hmc_random_steps: bool = False
     hmc_triangles: str = "cast"
     image_size: bool = True
     inverse_distance: bool = False

@@ -152,7 +152,7 @@ class JointChainSession(DrawPhases):
         self.proposal = gaussian_image_proposal(
             self.coords, self.approx, scales=self.scales, pcn_weight=cfg.pcn_weight,
             block_weight=cfg.block_weight, gradient=gradient, hmc_weight=cfg.hmc_weight,
-            hmc_leapfrog=cfg.hmc_leapfrog,
+            hmc_leapfrog=cfg.hmc_leapfrog, hmc_random_steps=cfg.hmc_random_steps,
             extra_moves=[(0.5 * cfg.conditional_weight, albedo), *lights])
         self.family = family_of(self.proposal)
 

@@ -273,6 +273,11 @@ class GaussianHMC:
         Leapfrog step in whitened units (about 1 where the approximation holds).
     n_leapfrog : int
     jitter : float in [0, 1)
+    random_steps : bool
+        Draw each move's number of steps uniformly from 1 to ``2 n_leapfrog - 1``
+        (mean ``n_leapfrog``): no trajectory length is the same for every move, so
+        no direction is carried a fixed fraction of its period each time
+        (Neal 2011, section 5.4.2.2).
     name : str
 
     Notes
@@ -287,8 +292,10 @@ class GaussianHMC:
     whitening ``u = m + L z`` is a fixed linear map (constant Jacobian). A
     point outside the parameters' domain or whose density or gradient is not
     finite (a diverged trajectory) ends it with ratio -inf (a function of the
-    point alone: the reversed trajectory meets the same point). Gradients at the two ends
-    are cached by ``params`` object (the next move starts from one of them).
+    point alone: the reversed trajectory meets the same point). The step size and the
+    number of steps are drawn independently of the state, so the kernel is a
+    mixture of such reversible kernels. Gradients at the two ends are cached by
+    ``params`` object (the next move starts from one of them).
     """
 
     coords: SamplingCoordinates
@@ -298,6 +305,7 @@ class GaussianHMC:
     n_leapfrog: int = 2
     jitter: float = 0.2
     name: str = "hmc"
+    random_steps: bool = False
     touches: Block = field(init=False)
     _cache: _GradientCache = field(default_factory=_GradientCache, repr=False)
 
@@ -315,7 +323,7 @@ class GaussianHMC:
     def with_step(self, step: float) -> GaussianHMC:
         """Return this move with another step size (sharing its gradient cache)."""
         return GaussianHMC(self.coords, self.approx, self.grad, step, self.n_leapfrog,
-                           self.jitter, self.name, self._cache)
+                           self.jitter, self.name, self.random_steps, self._cache)
 
     def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
         """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
@@ -328,6 +336,8 @@ class GaussianHMC:
             return Move(params, -math.inf, self.touches, self.name, joint=True)
         step = self.step * (1.0 + self.jitter * (2.0 * rng.random() - 1.0)) if self.jitter \
             else self.step
+        n_steps = int(rng.integers(1, 2 * self.n_leapfrog)) if self.random_steps \
+            else self.n_leapfrog
         p = rng.normal(size=z.size)
         points: list[RenderParameter] = []
         grads: list[np.ndarray] = []
@@ -351,7 +361,7 @@ class GaussianHMC:
 
         with np.errstate(all="ignore"):  # a diverging trajectory ends below (-inf)
             end = leapfrog(z, p, a.chol_cov.T @ g_u, gradient, step, np.ones(z.size),
-                           self.n_leapfrog)
+                           n_steps)
         if end is None:  # refused: the kernel rejects a -inf move without evaluating its point
             self._cache.keep((params, g_u))
             return Move(params, -math.inf, self.touches, self.name, joint=True)

@@ -116,7 +116,8 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
                             albedo_weight: float = 0.2,
                             light_conditional_weight: float = 0.1,
                             gradient: CoordinateGradient | None = None, hmc_weight: float = 0.0,
-                            hmc_leapfrog: int = 4, offset_sd: float | None = None,
+                            hmc_leapfrog: int = 4, hmc_random_steps: bool = False,
+                            offset_sd: float | None = None,
                             extra_moves: Sequence[tuple[float, Proposal]] = ()) -> Mixture:
     """Build the image-stage proposal of the Gaussian sampler (the default).
 
@@ -148,6 +149,8 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
         Top-level weight of the HMC move.
     hmc_leapfrog : int
         Leapfrog steps per HMC move (each a ray cast and a gradient).
+    hmc_random_steps : bool
+        Draw each HMC move's number of steps from 1 to ``2 hmc_leapfrog - 1``.
     offset_sd : float, optional
         Prior sd of the colour offsets: the albedo's exact conditional draws
         them with the albedo coefficients
@@ -203,7 +206,8 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
     parts += [(w, move) for w, move in extra_moves if w > 0]
     if gradient is not None and hmc_weight > 0:
         step = HMC_STEP * float(k.get("hmc", 1.0))
-        parts.append((hmc_weight, mixture((1.0, GaussianHMC(coords, approx, gradient, step,
-                                                             hmc_leapfrog, name="hmc")),
+        parts.append((hmc_weight, mixture((1.0, GaussianHMC(
+            coords, approx, gradient, step, hmc_leapfrog, name="hmc",
+            random_steps=hmc_random_steps)),
                                           name="hmc")))
     return mixture(*parts, name="image")

@@ -201,15 +201,20 @@ def test_block_conditionals_keep_the_target(seed):
         GaussianBlockConditional(c, approx, np.zeros(c.size, bool))
 
 
+@pytest.mark.parametrize("random_steps", [False, True])
 @pytest.mark.parametrize("seed", SEEDS)
-def test_hmc_keeps_the_target(seed):
+def test_hmc_keeps_the_target(seed, random_steps):
     c = _coords()
     target = Target(c, seed)
-    move = GaussianHMC(c, target.approximation(seed), target.grad, step=0.6, n_leapfrog=3)
+    move = GaussianHMC(c, target.approximation(seed), target.grad, step=0.6, n_leapfrog=3,
+                       random_steps=random_steps)
     samples, acc = run_chain(move, target.log_p, c.template, c.u_of, 5000, seed=seed)
     assert 0.4 < acc < 1.0
     _check(samples, target, burn=300)
-    assert target.calls <= 3 * 5000 + 1  # one gradient per leapfrog step, the ends cached
+    if random_steps:  # 1-5 steps, mean 3: the sum over 5,000 moves has sd ~100
+        assert 2.8 * 5000 < target.calls < 3.2 * 5000
+    else:
+        assert target.calls <= 3 * 5000 + 1  # one gradient per leapfrog step, the ends cached
 
 
 @pytest.mark.parametrize("seed", SEEDS)
