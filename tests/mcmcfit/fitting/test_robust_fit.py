@@ -9,6 +9,11 @@ the Gaussian foreground's, which bends shape, light and albedo to explain the
 hair. Two seeds; the margins are wide: measured (2026-12-05) 35-39 % of the
 face occluded (the block is 40 % of the face's rows), outlier probability 0.34,
 diffuse RMSE 0.0013 / 0.0009 against the Gaussian foreground's 0.028 / 0.020.
+How badly the Gaussian foreground fails depends on where its short chains go,
+which differs between processors: on another machine (2026-12-07, AMD EPYC)
+seed 1 measured 0.0031 against the Gaussian foreground's 0.0056. So the test
+asserts the robust fit's own error (below 0.005, several times what it
+measured) and that it beats the Gaussian foreground, not by how much.
 """
 
 from __future__ import annotations
@@ -77,4 +82,5 @@ def test_robust_fit_finds_the_occluder_and_fits_the_rest_better(case, seed, tmp_
     assert on_disk["occlusion"] == occ
     err_r = robust["truth"]["diffuse"]["rmse"]
     err_g = gaussian["truth"]["diffuse"]["rmse"]
-    assert err_r < 0.25 * err_g, (err_r, err_g)
+    assert err_r < 0.005, (err_r, err_g)
+    assert err_r < err_g, (err_r, err_g)
