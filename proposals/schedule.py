@@ -85,7 +85,7 @@ _SCALE_WEIGHTS = (0.2, 0.6, 0.2)
 FAMILIES = ("yaw", "pitch", "roll", "translation", "distance", "focal", "shape", "albedo",
             "expression", "color-transform", "light", "specular-exponent",
             "pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
-            "geometry-walk", "geometry-wide", "hmc", "contrast-exchange")
+            "geometry-walk", "geometry-wide", "hmc", "contrast-exchange", "contrast-light")
 
 
 #: ``{family: multiplier}`` of every step size of a family (missing: 1). Proposal

@@ -173,7 +173,7 @@ class ChainSession(EffectPhases, GaussianPhases):
                 light_conditional_weight=0.5 * cfg.conditional_weight,
                 gradient=self._coordinate_gradient() if cfg.hmc_weight > 0 else None,
                 hmc_weight=cfg.hmc_weight, hmc_leapfrog=cfg.hmc_leapfrog,
-                hmc_random_steps=cfg.hmc_random_steps,
+                hmc_random_steps=cfg.hmc_random_steps, contrast_light=cfg.contrast_light,
                 offset_sd=post.face.prior.config.offset_sigma if cfg.albedo_offsets else None)
             self.family = family_of(self.proposal)
             return

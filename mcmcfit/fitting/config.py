@@ -57,12 +57,11 @@ class FitConfig:
         each; :mod:`mcmcfit.fitting.chain_pool`); False runs them one after the
         other in this process (the same chains, only slower).
     warmup_steps : int or None
-        Image-stage warm-up steps per chain (step sizes adapted; never part of
-        the posterior). None: :data:`GAUSSIAN_WARMUP` (500) for the Gaussian
-        sampler (after its climb to the mode; its chains start from a draw of
-        the Laplace approximation), 30 % of ``steps`` for the random-walk one
-        (which measures the noise model in it; with 0 the configured noise
-        model is kept).
+        Image-stage warm-up steps per chain (step sizes adapted; never kept).
+        None: :data:`GAUSSIAN_WARMUP` (500) for the Gaussian sampler (after its
+        climb; its chains start from a draw of the Laplace approximation), 30 %
+        of ``steps`` for the random-walk one (which measures the noise model in
+        it; with 0 the configured noise model is kept).
     adapt_window : int
         Warm-up steps between two step-size adaptations.
     adapt : bool
@@ -73,9 +72,8 @@ class FitConfig:
         Gaussian sampler: climbs to the mode, each with the pixel region and the
         noise model re-chosen at the point the last one reached.
     mode_steps : int
-        Gaussian sampler: most Levenberg-Marquardt steps per climb (a climb
-        ends sooner once a step gains less than 0.1 in log density; a landmark
-        fit far from the mode can need 20 or more).
+        Gaussian sampler: most Levenberg-Marquardt steps per climb (it ends once
+        a step gains < 0.1 in log density; a poor landmark fit can need 20+).
     region_erode, region_band : int
         Gaussian sampler: pixels the region keeps away from the face's
         silhouette and from occlusion contours.
@@ -143,6 +141,9 @@ class FitConfig:
         transform's offsets with the albedo coefficients
         (:class:`proposals.albedo_offset.AlbedoOffsetConditional`; False: the
         albedo alone).
+    contrast_light : bool
+        Gaussian sampler, single fits: a colour-contrast step with the SH light
+        redrawn under it (:class:`proposals.light_conditional.ContrastLightExchange`; README).
     stop_when_converged : bool
         End the image stage at the first check where every monitored quantity
         has rank-normalised split R-hat < 1.01 and bulk- and tail-ESS >= 400.
@@ -294,6 +295,7 @@ class FitConfig:
     hmc_weight: float = 0.3
     hmc_leapfrog: int = 3
     hmc_random_steps: bool = False
+    contrast_light: bool = True
     hmc_triangles: str = "cast"
     image_size: bool = True
     inverse_distance: bool = False

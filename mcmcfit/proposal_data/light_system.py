@@ -90,7 +90,7 @@ class RenderLightSystem:
         else:
             mat, off = np.eye(3), np.zeros(3)
         target = self._target[face] - off
-        drawn = False
+        drawn, held = False, not rs.effects.color_transform
         if rs.effects.directional:  # the state's transport minus the SH part
             part = _directional_part(rs, at, rho, albedo, b, s)
             strength = np.asarray(p.directional_light.diffuse, np.float64)
@@ -98,12 +98,12 @@ class RenderLightSystem:
                      and np.array_equal(strength, np.asarray(p.directional_light.specular)))
             if drawn:  # linear in the strength: its unit transport is one more row of L
                 g = np.concatenate([g, (part / strength)[:, :, None]], axis=2)
-            else:  # an offset
-                target = target - part @ mat.T
+            else:  # an offset (one that depends on the colour matrix)
+                target, held = target - part @ mat.T, True
         if self._root_weights is not None:
             sw = self._root_weights[face]
             g, target = g * sw[:, None, None], target * sw[:, None]
-        return light_system(g, mat, target, key, directional=drawn)
+        return light_system(g, mat, target, key, directional=drawn, matrix_free_target=not held)
 
 
 def _directional_part(rs: RenderState, at, rho, albedo, b, s) -> np.ndarray:

@@ -29,7 +29,7 @@ from proposals.laplace.moves import (
     CoordinateGradient, CrankNicolson, GaussianApproximation, GaussianBlockConditional, GaussianHMC,
 )
 from proposals.laplace.random_walk import GaussianRandomWalk
-from proposals.light_conditional import LightConditional
+from proposals.light_conditional import ContrastLightExchange, LightConditional
 from proposals.schedule import Scales
 
 __all__ = ["BLOCK_SHARES", "CONTRAST_STEP", "GAUSSIAN_BLOCKS", "GAUSSIAN_FAMILIES", "GAUSSIAN_STEPS",
@@ -41,7 +41,7 @@ _IMAGE_PREFIX = re.compile(r"^image\d+\.")
 
 #: The Gaussian moves' families (warm-up adapts one step multiplier each).
 GAUSSIAN_FAMILIES = ("pcn", "gaussian-geometry", "gaussian-albedo", "gaussian-shading",
-                     "geometry-walk", "geometry-wide", "hmc", "contrast-exchange")
+                     "geometry-walk", "geometry-wide", "hmc", "contrast-exchange", "contrast-light")
 
 #: Initial Crank-Nicolson step ``sqrt(1 - rho^2)`` of the Gaussian moves' families (the
 #: warm-up multiplies it by the family's multiplier, at most to 1: an independent draw).
@@ -52,7 +52,7 @@ GAUSSIAN_STEPS = {"pcn": 0.85, "gaussian-geometry": 0.8, "gaussian-albedo": 1.0,
 #: face: the Crank-Nicolson move's effective samples per step peak near 0.2 acceptance).
 GAUSSIAN_TARGETS = {"pcn": 0.2, "gaussian-geometry": 0.3, "gaussian-albedo": 0.3,
                     "gaussian-shading": 0.3, "geometry-walk": 0.25, "geometry-wide": 0.25,
-                    "hmc": 0.65, "contrast-exchange": 0.4}
+                    "hmc": 0.65, "contrast-exchange": 0.4, "contrast-light": 0.4}
 
 #: Initial step of the geometry's random walk, in conditional sds per coordinate, times
 #: ``1 / sqrt(k)`` for a block of ``k`` coordinates (2.4 / sqrt(k): the optimal walk's
@@ -117,7 +117,7 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
                             light_conditional_weight: float = 0.1,
                             gradient: CoordinateGradient | None = None, hmc_weight: float = 0.0,
                             hmc_leapfrog: int = 4, hmc_random_steps: bool = False,
-                            offset_sd: float | None = None,
+                            contrast_light: bool = False, offset_sd: float | None = None,
                             extra_moves: Sequence[tuple[float, Proposal]] = ()) -> Mixture:
     """Build the image-stage proposal of the Gaussian sampler (the default).
 
@@ -151,6 +151,10 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
         Leapfrog steps per HMC move (each a ray cast and a gradient).
     hmc_random_steps : bool
         Draw each HMC move's number of steps from 1 to ``2 hmc_leapfrog - 1``.
+    contrast_light : bool
+        With ``light_conditional``: also step the colour contrast with the light
+        redrawn under it (:class:`~proposals.light_conditional.ContrastLightExchange`,
+        family ``"contrast-light"``, the light conditional's weight).
     offset_sd : float, optional
         Prior sd of the colour offsets: the albedo's exact conditional draws
         them with the albedo coefficients
@@ -203,6 +207,14 @@ def gaussian_image_proposal(coords: SamplingCoordinates, approx: GaussianApproxi
                 name="contrast-exchange")))
     if light_conditional is not None and light_conditional_weight > 0:
         parts.append((light_conditional_weight, light_conditional))
+        at = np.flatnonzero(names == "contrast")
+        if contrast_light and at.size:
+            chol = np.asarray(approx.chol_cov)[at[0]]
+            step = CONTRAST_STEP * float(np.sqrt(chol @ chol)) * float(k.get("contrast-light", 1.0))
+            lc = light_conditional
+            parts.append((light_conditional_weight, mixture((1.0, ContrastLightExchange(
+                lc.data, lc.prior_mean, lc.prior_sd, sigma=lc.sigma, step=step)),
+                name="contrast-light")))
     parts += [(w, move) for w, move in extra_moves if w > 0]
     if gradient is not None and hmc_weight > 0:
         step = HMC_STEP * float(k.get("hmc", 1.0))
