@@ -48,8 +48,8 @@ from albedo_model.render.cache_table import Kept
 from proposals.albedo_solver import _log_density_terms, independence_draw
 from proposals.base import Move, ProposalState, check_scale, no_move
 
-__all__ = ["STRENGTH_PROPOSAL", "ContrastLightExchange", "LightConditional", "LightSystem", "LightSystemData",
-           "conditional", "light_system", "prior_of", "with_matrix"]
+__all__ = ["STRENGTH_PROPOSAL", "ContrastLightExchange", "LightConditional", "LightSystem",
+           "LightSystemData", "conditional", "light_system", "prior_of", "with_matrix"]
 
 #: ``(mean, sd)`` of the Gaussian that stands in for the directional strength's prior in
 #: the proposal (the MH test applies the true log-normal prior; a draw <= 0 is rejected).
@@ -154,6 +154,19 @@ def prior_of(system: LightSystem, prior_mean: np.ndarray, prior_sd: np.ndarray,
             np.concatenate([L, np.asarray(light.diffuse, np.float64)]))
 
 
+def _with_light(params, new: np.ndarray, directional: bool):
+    """Return ``params`` with the drawn unknowns ``new`` set, and the blocks that changed."""
+    shape = np.shape(params.environment_map.coefficients)
+    k = int(np.prod(shape))
+    moved = params._replace(environment_map=SHLight(new[:k].reshape(shape)))
+    if not directional:
+        return moved, Block.LIGHT
+    strength = tuple(float(v) for v in new[k:])
+    light = params.directional_light
+    return (moved._replace(directional_light=light._replace(diffuse=strength, specular=strength)),
+            Block.LIGHT | Block.DIRECTIONAL_STRENGTH)
+
+
 @dataclass(eq=False)
 class LightConditional:
     """Independence proposal ``vec L' ~ N(m, Lambda^-1)`` from the light's Gaussian conditional.
@@ -194,24 +207,21 @@ class LightConditional:
         system = self.data(state)
         if system is None or system.n_pixels == 0:
             return no_move(params, self.name)
-        light = params.directional_light
         mean, sd, x = prior_of(system, self.prior_mean, self.prior_sd, params)
         if system.directional:  # the SH light and the directional strength together
             z = np.concatenate([z, rng.normal(0.0, 1.0, 3)])
-        cond = self._factorisation.get(system.key, lambda: conditional(
+        new, ratio = independence_draw(x, z, self._here(system, mean, sd))
+        moved, touched = _with_light(params, new, system.directional)
+        return Move(moved, ratio, touched, self.name, joint=True)
+
+    def _here(self, system: LightSystem, mean: np.ndarray, sd: np.ndarray):
+        """Return the conditional of the accepted state's system (kept while its key holds)."""
+        return self._factorisation.get(system.key, lambda: conditional(
             system, self.sigma, mean, sd))
-        new, ratio = independence_draw(x, z, cond)
-        moved = params._replace(environment_map=SHLight(new[:L.size].reshape(L.shape)))
-        if not system.directional:
-            return Move(moved, ratio, Block.LIGHT, self.name, joint=True)
-        strength = tuple(float(v) for v in new[L.size:])
-        moved = moved._replace(directional_light=light._replace(diffuse=strength,
-                                                                specular=strength))
-        return Move(moved, ratio, Block.LIGHT | Block.DIRECTIONAL_STRENGTH, self.name, joint=True)
 
 
 @dataclass(eq=False)
-class ContrastLightExchange:
+class ContrastLightExchange(LightConditional):
     """Step the colour contrast, redraw the SH light from its conditional under it.
 
     Parameters
@@ -222,9 +232,9 @@ class ContrastLightExchange:
         The Gaussian prior of the SH light.
     sigma : float
         The likelihood's effective pixel sd.
+    name : str
     step : float
         Sd of the contrast's Gaussian step.
-    name : str
 
     Notes
     -----
@@ -238,23 +248,15 @@ class ContrastLightExchange:
     with the light integrated out.
     """
 
-    data: LightSystemData
-    prior_mean: np.ndarray
-    prior_sd: np.ndarray
-    sigma: float = 0.043
-    step: float = 0.1
     name: str = "contrast-light-exchange"
+    step: float = 0.1
     touches: ClassVar[Block] = (Block.LIGHT | Block.DIRECTIONAL_STRENGTH
                                 | Block.COLOR_TRANSFORM)
 
     def __post_init__(self) -> None:
         """Validate the scales and the prior."""
-        check_scale(self.sigma, "contrast-light exchange sigma")
+        super().__post_init__()
         check_scale(self.step, "contrast-light exchange step")
-        self.prior_mean = np.asarray(self.prior_mean, np.float64)
-        self.prior_sd = np.asarray(self.prior_sd, np.float64)
-        if self.prior_mean.shape != self.prior_sd.shape or np.any(self.prior_sd <= 0):
-            raise ValueError("contrast-light exchange: prior mean and sd must match, sd > 0")
 
     def __call__(self, rng: np.random.Generator, state: ProposalState) -> Move:
         """Draw a move from the accepted ``state`` (not modified) with ``rng``."""
@@ -271,19 +273,10 @@ class ContrastLightExchange:
         mean, sd, x = prior_of(system, self.prior_mean, self.prior_sd, params)
         z = z if system.directional else z[:L.size]
         new_ct = ct._replace(contrast=kappa)
-        here = conditional(system, self.sigma, mean, sd)
-        there = conditional(with_matrix(system, new_ct.matrix()), self.sigma, mean, sd)
-        m, chol = there
+        m, chol = conditional(with_matrix(system, new_ct.matrix()), self.sigma, mean, sd)
         new = m + np.linalg.solve(chol.T, z)
         forward = -0.5 * float(z @ z) + float(np.sum(np.log(np.diag(chol))))
-        ratio = _log_density_terms(x, here) - forward
-        moved = params._replace(environment_map=SHLight(new[:L.size].reshape(L.shape)),
-                                color_transform=new_ct)
-        touched = Block.LIGHT | Block.COLOR_TRANSFORM
-        if system.directional:
-            strength = tuple(float(v) for v in new[L.size:])
-            light = params.directional_light
-            moved = moved._replace(directional_light=light._replace(diffuse=strength,
-                                                                    specular=strength))
-            touched |= Block.DIRECTIONAL_STRENGTH
-        return Move(moved, ratio, touched, self.name, joint=True)
+        ratio = _log_density_terms(x, self._here(system, mean, sd)) - forward
+        moved, touched = _with_light(params, new, system.directional)
+        return Move(moved._replace(color_transform=new_ct), ratio,
+                    touched | Block.COLOR_TRANSFORM, self.name, joint=True)
