@@ -218,4 +218,6 @@ def _pooled(noises: list[NoiseModel]) -> NoiseModel:
     sigma = float(np.median([n.sigma for n in noises]))
     temperature = float(np.median([n.temperature for n in noises]))
     n_face = int(np.median([n.n_face for n in noises]))
-    return NoiseModel(sigma, temperature, "estimated", n_face, n_face / temperature)
+    sensor = float(np.median([n.sensor_sigma for n in noises]))
+    return NoiseModel(sigma, temperature, "estimated", n_face, n_face / temperature,
+                      sensor_sigma=sensor)

@@ -167,7 +167,8 @@ def build_posterior(problem: FitProblem, noise: NoiseModel, *, threads: int | No
         geometry = LandmarkGeometry(problem.model, threads=1)
     smooth = noise.sigma if cfg.background == "smoothed" else None
     target = prepare_image_target(problem.image, bins=cfg.bins, smooth_sigma=smooth,
-                                  colour=comparison_colour(problem))
+                                  colour=comparison_colour(problem),
+                                  sensor_sigma=noise.sensor_sigma)
     robust = region is not None and np.any(np.asarray(noise.outlier_prior) > 0.0)
     occluder = occluder_log_density(target.linear, ~np.asarray(region, bool), bins=cfg.bins,
                                     sigma=smooth) if robust else None

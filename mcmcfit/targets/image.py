@@ -69,12 +69,17 @@ __all__ = [
 IMAGE_LIKELIHOODS = ("independent", "collective", "trimmed")
 
 
-def linearise(image: np.ndarray) -> np.ndarray:
+def linearise(image: np.ndarray, sensor_sigma: float = 0.0) -> np.ndarray:
     """Pure-power linearisation ``x^2.2`` of an image in [0, 1] (clipped; 0 stays 0).
 
     Parameters
     ----------
     image : (..., 3) float array, gamma-encoded (value/255 for 8-bit files)
+    sensor_sigma : float
+        Sd of zero-mean noise in the encoded values. ``x^2.2`` of a noisy ``x``
+        overestimates the noiseless intensity by ``0.5 g (g - 1) x^(g - 2)
+        sensor_sigma^2`` on average (``g = 2.2``, second order in the noise);
+        that is subtracted (the result floored at 0). 0 gives the plain power.
 
     Returns
     -------
@@ -82,7 +87,13 @@ def linearise(image: np.ndarray) -> np.ndarray:
     """
     x = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     with np.errstate(divide="ignore"):
-        return np.where(x > 0.0, np.exp(GAMMA * np.log(np.maximum(x, 1e-300))), 0.0)
+        log_x = np.log(np.maximum(x, 1e-300))
+        lin = np.where(x > 0.0, np.exp(GAMMA * log_x), 0.0)
+        if sensor_sigma > 0.0:
+            bias = 0.5 * GAMMA * (GAMMA - 1.0) * float(sensor_sigma) ** 2 * \
+                np.where(x > 0.0, np.exp((GAMMA - 2.0) * log_x), 0.0)
+            lin = np.maximum(lin - bias, 0.0)
+    return lin
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,7 +133,7 @@ class ImageTarget:
 
 def prepare_image_target(image: np.ndarray, *, bins: int = 25,
                          smooth_sigma: float | None = None,
-                         colour: str = "linear") -> ImageTarget:
+                         colour: str = "linear", sensor_sigma: float = 0.0) -> ImageTarget:
     """Linearise a photograph (unless ``colour="srgb"``) and build its background histogram.
 
     Parameters
@@ -139,6 +150,9 @@ def prepare_image_target(image: np.ndarray, *, bins: int = 25,
         The comparison space: ``"linear"`` linearises the photograph (``x^2.2``);
         ``"srgb"`` keeps its encoded values (clipped to [0, 1]), for a model
         whose colour is an sRGB texture.
+    sensor_sigma : float
+        Sd of the photograph's noise in its encoded values: the linearisation
+        takes off the bias that noise gives it (:func:`linearise`; ``"linear"`` only).
 
     Raises
     ------
@@ -152,7 +166,7 @@ def prepare_image_target(image: np.ndarray, *, bins: int = 25,
         raise InputError("target image contains NaN or infinite values")
     if colour not in ("linear", "srgb"):
         raise InputError(f"image colour space must be 'linear' or 'srgb', got {colour!r}")
-    lin = linearise(img) if colour == "linear" else np.clip(img, 0.0, 1.0)
+    lin = linearise(img, sensor_sigma) if colour == "linear" else np.clip(img, 0.0, 1.0)
     hist = colour_histogram(lin, bins=bins)
     bg = hist.log_density(lin) if smooth_sigma is None else \
         hist.smoothed_log_density(lin, float(smooth_sigma))

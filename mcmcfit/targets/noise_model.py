@@ -23,7 +23,18 @@ sensor noise, ``A`` is about 1 and ``sigma`` the noise: the plain,
 well-specified likelihood. This is empirical Bayes (the scale is read off the
 data once, then held fixed for the kept draws), stated in ``summary.json``.
 
-This module imports only numpy (and scipy.ndimage for the robust foreground).
+:func:`sensor_noise` measures a third number, the sd of the sensor noise in
+the *encoded* image (``sensor_sigma``): a camera's noise is added before (shot
+noise, nearly constant after the encoding) or after the encoding, not to the
+linear intensities the render is compared with, and linearising a noisy
+encoded value ``x^2.2`` biases it upward by ``1.1 * 1.2 x^0.2 sensor_sigma^2``
+on average (Jensen's inequality; 1.1e-4 at ``x = 0.5`` and 1 % noise, about
+one posterior sd of a region's mean albedo on a 250² face).
+:func:`mcmcfit.targets.image.linearise` takes that bias off.
+
+This module imports :mod:`albedo_model.shading.image_formation` (the encoding's
+exponent), numpy, scipy.ndimage (the robust foreground) and scikit-image's
+wavelet noise estimate.
 """
 
 from __future__ import annotations
@@ -32,8 +43,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from skimage.restoration import estimate_sigma
 
-__all__ = ["NoiseModel", "correlation_area", "estimate_noise", "fixed_noise", "robust_noise"]
+from albedo_model.shading.image_formation import GAMMA
+
+__all__ = ["NoiseModel", "correlation_area", "estimate_noise", "fixed_noise", "robust_noise",
+           "sensor_noise"]
 
 #: Floor of the estimated pixel sd (linear): half an 8-bit step of a mid-grey in
 #: linear units; a render that matches a noiseless image exactly must not make
@@ -70,6 +85,9 @@ class NoiseModel(NamedTuple):
     outlier_map : (H W,) float32 array, optional
         The robust foreground's occlusion prior per pixel (estimated; not in
         :meth:`to_dict`).
+    sensor_sigma : float
+        Sd of the sensor noise in the encoded image (:func:`sensor_noise`; 0
+        when fixed): the linear target is unbiased for it.
     """
 
     sigma: float
@@ -79,6 +97,7 @@ class NoiseModel(NamedTuple):
     n_effective: float = math.nan
     outlier_probability: float = 0.0
     outlier_map: np.ndarray | None = None
+    sensor_sigma: float = 0.0
 
     @property
     def outlier_prior(self):
@@ -90,8 +109,12 @@ class NoiseModel(NamedTuple):
         rule = ("sigma = RMS residual over the likelihood's pixels (the Gaussian sampler: the "
                 "fixed interior region at the best chain's mode; the random-walk sampler: the "
                 "face pixels at the end of the provisional warm-up); temperature = correlation "
-                "area of the residuals (pixels per independent residual); held fixed for the "
-                "kept draws" if self.source == "estimated" else
+                "area of the residuals (pixels per independent residual); sensor_sigma = sd "
+                "of the sensor noise in the encoded image, the smaller of the residual's "
+                "(divided by the encoding's slope at the render) and scikit-image's wavelet "
+                "estimate over the region's bounding box; the linear target is x^2.2 - 1.32 "
+                "x^0.2 sensor_sigma^2 (the expected linear value of a noisy encoded x, to "
+                "second order); held fixed for the kept draws" if self.source == "estimated" else
                 "sigma and temperature given by the configuration")
         if self.outlier_probability > 0.0:
             rule += ("; robust foreground: each pixel is the face (Gaussian) or, with "
@@ -269,11 +292,55 @@ def estimate_noise(target: np.ndarray, render: np.ndarray, mask: np.ndarray, *,
     if n == 0:
         raise ValueError("estimate_noise: no face pixel to measure the residual on")
     res = np.asarray(target, np.float64) - np.asarray(render, np.float64)
+    sensor = sensor_noise(target, render, m)
     if background is not None:
         sigma, prior, face = robust_noise(res, background, m, min_sigma=min_sigma)
         area = correlation_area(res, m & (face > 0.5))
         return NoiseModel(sigma, area, "estimated", n, float(face[m].sum()) / area,
-                          float(prior[m].mean()), prior.reshape(-1).astype(np.float32))
+                          float(prior[m].mean()), prior.reshape(-1).astype(np.float32), sensor)
     sigma = max(float(min_sigma), float(np.sqrt(np.mean(res[m] ** 2))))
     area = correlation_area(res, m)
-    return NoiseModel(sigma, area, "estimated", n, n / area)
+    return NoiseModel(sigma, area, "estimated", n, n / area, sensor_sigma=sensor)
+
+
+#: Darkest encoded value at which the residual is divided by the encoding's slope
+#: (below it the slope, and the residual's share of the noise, vanish).
+_MIN_ENCODED = 0.05
+
+
+def sensor_noise(target: np.ndarray, render: np.ndarray, mask: np.ndarray) -> float:
+    """Sd of the sensor noise in the encoded (``x^(1/2.2)``) image, over ``mask``.
+
+    Each of two estimates bounds it from above: the residual against the
+    render, mapped to the encoded scale by the encoding's slope at the render
+    (it also holds the model's error), and scikit-image's wavelet estimate
+    (:func:`skimage.restoration.estimate_sigma`, Donoho's MAD of the finest
+    diagonal detail) over the mask's bounding box (it also holds the image's
+    finest texture). The smaller is returned: on a face drawn from the model
+    the first is the noise, on a photograph the second.
+
+    Parameters
+    ----------
+    target, render : (H, W, 3) float arrays
+        The linear target image and the linear render.
+    mask : (H, W) bool
+        Pixels to measure on (at least one).
+
+    Returns
+    -------
+    float >= 0, in encoded units (1 = full scale).
+    """
+    m = np.asarray(mask, bool)
+    if not m.any():
+        raise ValueError("sensor_noise: no pixel to measure on")
+    lin = np.clip(np.asarray(render, np.float64)[m], 0.0, 1.0)
+    slope = GAMMA * np.maximum(lin ** (1.0 / GAMMA), _MIN_ENCODED) ** (GAMMA - 1.0)
+    res = (np.asarray(target, np.float64)[m] - np.asarray(render, np.float64)[m]) / slope
+    from_residual = float(np.sqrt(np.mean(res ** 2)))
+    rows, cols = np.nonzero(m)
+    box = np.clip(np.asarray(target, np.float64)[rows.min():rows.max() + 1,
+                                                 cols.min():cols.max() + 1], 0.0, 1.0)
+    if min(box.shape[:2]) < 4:
+        return from_residual
+    wavelet = float(estimate_sigma(box ** (1.0 / GAMMA), channel_axis=-1, average_sigmas=True))
+    return min(from_residual, wavelet)
