@@ -40,7 +40,10 @@ import numpy as np
 from albedo_model.params import Block
 from albedo_model.render.cache_table import Kept
 from proposals.albedo_solver import (
-    SATURATION_LIMIT, AlbedoData, AlbedoSystem, _log_density_terms, albedo_system,
+    SATURATION_LIMIT,
+    AlbedoData,
+    AlbedoSystem,
+    albedo_system,
     independence_draw,
 )
 from proposals.base import Move, ProposalState, check_scale, no_move
@@ -240,11 +243,7 @@ class ContrastAlbedoExchange(AlbedoOffsetConditional):
                                           self.sigma, self.offset_sd)
         if here is None or there is None:
             return no_move(params, self.name)
-        mean, chol = there
-        new = mean + np.linalg.solve(chol.T, z)
-        forward = -0.5 * float(z @ z) + float(np.sum(np.log(np.diag(chol))))
-        x = np.r_[c, np.asarray(ct.offset, np.float64)]
-        ratio = _log_density_terms(x, here) - forward
+        new, ratio = independence_draw(np.r_[c, np.asarray(ct.offset, np.float64)], z, there, here)
         k = c.shape[0]
         moved = params._replace(
             momo=params.momo._replace(albedo=new[:k]),

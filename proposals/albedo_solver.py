@@ -177,16 +177,19 @@ def _log_density_terms(c: np.ndarray, cond) -> float:
     return -0.5 * float(d @ d) + float(np.sum(np.log(np.diag(chol))))
 
 
-def independence_draw(x: np.ndarray, z: np.ndarray, cond) -> tuple[np.ndarray, float]:
+def independence_draw(x: np.ndarray, z: np.ndarray, cond,
+                      back=None) -> tuple[np.ndarray, float]:
     """Draw ``x' ~ N(m, Lambda^-1)`` from standard normals ``z``; return ``(x', log ratio)``.
 
     ``cond`` is ``(m, L)`` with ``L`` the Cholesky factor of the precision; the
-    ratio ``log N(x; m, Lambda^-1) - log N(x'; m, Lambda^-1)`` is that of an
-    independence proposal (the same mean and precision both ways).
+    ratio ``log N(x; back) - log N(x'; cond)`` is that of an independence
+    proposal when ``back`` is None (the same mean and precision both ways), and
+    of an exchange move when ``back`` is the conditional the reverse move draws
+    from (e.g. at the state's own contrast or light scale).
     """
     mean, chol = cond
     new = mean + np.linalg.solve(chol.T, z)  # (x' - m)^T Lambda (x' - m) = z^T z
-    ratio = _log_density_terms(x, cond) + 0.5 * float(z @ z) - float(
+    ratio = _log_density_terms(x, cond if back is None else back) + 0.5 * float(z @ z) - float(
         np.sum(np.log(np.diag(chol))))
     return new, ratio
 
@@ -293,10 +296,8 @@ class LightAlbedoExchange:
         there = _conditional(system, float(np.exp(log_s)), self.sigma)
         if here is None or there is None:
             return no_move(params, self.name)
-        mean, chol = there
-        new = mean + np.linalg.solve(chol.T, z)
-        forward = -0.5 * float(z @ z) + float(np.sum(np.log(np.diag(chol))))
-        ratio = L.size * log_s + _log_density_terms(c, here) - forward
+        new, ratio = independence_draw(c, z, there, here)
+        ratio += L.size * log_s
         moved = params._replace(environment_map=SHLight(L * np.exp(log_s)),
                                 momo=params.momo._replace(albedo=new))
         return Move(moved, ratio, Block.ALBEDO | Block.LIGHT, self.name, joint=True)

@@ -45,7 +45,7 @@ import numpy as np
 
 from albedo_model.params import Block, SHLight
 from albedo_model.render.cache_table import Kept
-from proposals.albedo_solver import _log_density_terms, independence_draw
+from proposals.albedo_solver import independence_draw
 from proposals.base import Move, ProposalState, check_scale, no_move
 
 __all__ = ["STRENGTH_PROPOSAL", "ContrastLightExchange", "LightConditional", "LightSystem",
@@ -273,10 +273,8 @@ class ContrastLightExchange(LightConditional):
         mean, sd, x = prior_of(system, self.prior_mean, self.prior_sd, params)
         z = z if system.directional else z[:L.size]
         new_ct = ct._replace(contrast=kappa)
-        m, chol = conditional(with_matrix(system, new_ct.matrix()), self.sigma, mean, sd)
-        new = m + np.linalg.solve(chol.T, z)
-        forward = -0.5 * float(z @ z) + float(np.sum(np.log(np.diag(chol))))
-        ratio = _log_density_terms(x, self._here(system, mean, sd)) - forward
+        there = conditional(with_matrix(system, new_ct.matrix()), self.sigma, mean, sd)
+        new, ratio = independence_draw(x, z, there, self._here(system, mean, sd))
         moved, touched = _with_light(params, new, system.directional)
         return Move(moved._replace(color_transform=new_ct), ratio,
                     touched | Block.COLOR_TRANSFORM, self.name, joint=True)
