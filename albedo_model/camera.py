@@ -293,6 +293,15 @@ def _eye_rays_cached(fx: float, fy: float, cx: float, cy: float, n: float, ortho
     return org, dirs
 
 
+@lru_cache(maxsize=8)
+def _pixel_grid(w: int, h: int) -> np.ndarray:
+    """(H*W, 3) float32 rows ``(i, j, 1)`` of the pixels, row-major (read-only)."""
+    j, i = np.divmod(np.arange(w * h, dtype=np.int64), w)
+    grid = np.stack([i, j, np.ones_like(i)], axis=1).astype(np.float32)
+    grid.flags.writeable = False
+    return grid
+
+
 def camera_rays(camera: Camera, image_size: ImageSize, pose: Pose, view: View, *,
                 out: tuple[np.ndarray, np.ndarray] | None = None,
                 pixels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -321,26 +330,31 @@ def camera_rays(camera: Camera, image_size: ImageSize, pose: Pose, view: View, *
     -----
     Pixel order is row-major: index ``j * W + i`` is pixel (x=i, y=j), sampled at
     the continuous point (i, j). Eye-frame rays are mapped by the inverse
-    pose·view, ``p = R^T (p_e - t) / s`` (the pose scaling is undone too). The
-    eye-frame grid depends on camera and image size only and is cached; a pose
-    change costs two (H*W, 4) x (4, 3) float32 products.
+    pose·view, ``p = R^T (p_e - t) / s`` (the pose scaling is undone too). A
+    ray is affine in its pixel's coordinates, so both arrays are one
+    ``[i, j, 1] @ (3, 3)`` float32 product over the cached pixel grid: a new
+    focal length or principal point (every camera move) rebuilds no grid.
     """
-    org, dirs = _eye_rays(camera, image_size)
-    if pixels is not None:
-        org, dirs = org[pixels], dirs[pixels]
     r, t, s = eye_from_model(pose, view)
-    # row vectors: p_model = p_eye @ (R / s) - t @ R / s
-    m = np.empty((4, 3), np.float32)
-    m[:3] = r / s
-    m[3] = -(t @ r) / s
+    m = np.vstack([r / s, -(t @ r) / s])  # row vectors: p_model = p_eye @ (R / s) - t @ R / s
+    (fx, fy), (cx, cy) = pixel_scale(camera, image_size), principal_point_px(camera, image_size)
+    z = np.array([0.0, 0.0, 1.0])
+    # the eye ray of pixel (i, j) is affine in (i, j): a = (i - cx) / fx, b = -(j - cy) / fy;
+    # directions (a, b, -1), origins near (a, b, -1) (on the near plane, orthographic too)
+    d_map = np.stack([m[0] / fx, -m[1] / fy, -cx / fx * m[0] + cy / fy * m[1] - m[2]])
+    o_map = (float(camera.near) * d_map + np.outer(z, m[3])).astype(np.float32)
+    d_map = (np.outer(z, -m[2]) if camera.orthographic else d_map).astype(np.float32)
+    grid = _pixel_grid(int(image_size.width), int(image_size.height))
+    if pixels is not None:
+        grid = grid[pixels]
     if out is None:
-        out = (np.empty((len(org), 3), np.float32), np.empty((len(org), 3), np.float32))
+        out = (np.empty((len(grid), 3), np.float32), np.empty((len(grid), 3), np.float32))
     origins, directions = out
     # blocks keep OpenBLAS single-threaded: its threaded sgemm spins and can
     # take 100x longer when the other core is busy (measured at 512x512)
-    for i in range(0, len(org), _RAY_BLOCK):
-        np.matmul(org[i:i + _RAY_BLOCK], m, out=origins[i:i + _RAY_BLOCK])
-        np.matmul(dirs[i:i + _RAY_BLOCK], m, out=directions[i:i + _RAY_BLOCK])
+    for i in range(0, len(grid), _RAY_BLOCK):
+        np.matmul(grid[i:i + _RAY_BLOCK], o_map, out=origins[i:i + _RAY_BLOCK])
+        np.matmul(grid[i:i + _RAY_BLOCK], d_map, out=directions[i:i + _RAY_BLOCK])
     return origins, directions
 
 

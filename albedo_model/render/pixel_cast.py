@@ -8,7 +8,7 @@ list of pixels with their triangles into the
 functions read, padded to a few distinct sizes.
 
 This module imports :mod:`albedo_model.camera`, :mod:`albedo_model.params` and
-:mod:`albedo_model.render` (differentiable, raycast, visibility).
+:mod:`albedo_model.render` (differentiable, instances, raycast, visibility).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import numpy as np
 from albedo_model.camera import camera_rays, pixel_window
 from albedo_model.params import RenderParameter
 from albedo_model.render.differentiable import FixedHits
+from albedo_model.render.instances import ModelInstances
 from albedo_model.render.raycast import RayCaster
 from albedo_model.render.visibility import directional_visibility
 
@@ -39,12 +40,12 @@ class SceneCaster:
         self._threads = int(threads)
         self._caster: RayCaster | None = None
         self._rays: tuple[np.ndarray, np.ndarray] | None = None
+        self._instances = ModelInstances(model, specular=False)
 
     def _scene(self, params: RenderParameter) -> None:
         """Move the private scene to ``params``' geometry."""
-        p = params
-        v32 = np.ascontiguousarray(
-            self.model.shape_instance(p.momo.shape, p.momo.expression), np.float32)
+        # float32 from all coefficients (a function of ``params`` alone, no deltas)
+        v32 = self._instances.shape(params).reshape(-1, 3)
         if self._caster is None:
             self._caster = RayCaster(v32, self.model.triangles, threads=self._threads)
         else:
