@@ -284,7 +284,7 @@ class FitConfig:
     warmup_steps: int | None = None
     adapt_window: int = 250
     adapt: bool = True
-    check_every: int = 500
+    check_every: int = 250
     mode_rounds: int = 3
     mode_steps: int = 30
     region_erode: int = 2

@@ -55,7 +55,7 @@ from mcmcfit.fitting.problem import build_posterior, provisional_noise
 from mcmcfit.proposal_data.face_pixels import unsaturated
 from mcmcfit.sampling.kernel import init
 from mcmcfit.targets.background import occluder_log_density
-from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster
+from mcmcfit.targets.curvature import PosteriorCurvature, SceneCaster, coordinate_gradient
 from mcmcfit.targets.noise_model import NoiseModel, estimate_noise
 from proposals.laplace.coordinates import SamplingCoordinates
 from proposals.laplace.schedule import GAUSSIAN_BLOCKS
@@ -152,8 +152,9 @@ class GaussianPhases(DrawPhases):
                polish: int = 0, free: np.ndarray | None = None) -> ModeResult:
         curvature = PosteriorCurvature(post.face, self.coords.layout,
                                        caster=self._scene_caster())
+        gradient = coordinate_gradient(curvature, self.coords)
         res = find_mode(post.face, curvature, self.coords, params, rng=self.rng,
-                        max_steps=steps, free=free)
+                        max_steps=steps, free=free, gradient=gradient)
         if polish:
             more = find_mode(post.face, curvature, self.coords, res.params, rng=self.rng,
                              max_steps=polish, step_pixels=np.iinfo(np.int64).max)

@@ -119,13 +119,16 @@ def test_image_gradient_forward_reverse_and_finite_differences(problem):
         assert g_rev @ d == pytest.approx(fd, rel=0.05, abs=0.05)
 
 
-def test_climb_reaches_the_mode_and_laplace_is_positive_definite(problem):
+@pytest.mark.parametrize("exact_gradient", [False, True], ids=["subset", "exact-gradient"])
+def test_climb_reaches_the_mode_and_laplace_is_positive_definite(problem, exact_gradient):
+    """Both climbs: each step's gradient from a pixel subset, or the exact one with a kept precision."""
     _, truth, face, lay, cur = problem
     coords = SamplingCoordinates(lay, truth)
     start = truth._replace(
         pose=truth.pose._replace(yaw=truth.pose.yaw + 0.04, translation=(4.0, 3.0, -1020.0)),
         environment_map=SHLight(truth.environment_map.coefficients * 1.2))
-    res = find_mode(face, cur, coords, start, rng=np.random.default_rng(0), max_steps=15)
+    res = find_mode(face, cur, coords, start, rng=np.random.default_rng(0), max_steps=15,
+                    gradient=coordinate_gradient(cur, coords) if exact_gradient else None)
     assert res.iterations >= 2 and all(b >= a for a, b in zip(res.trace, res.trace[1:]))
     exact_truth = init(truth, face).log_posterior + coords.log_jacobian(coords.u_of(truth))
     assert res.log_density > exact_truth - 5.0  # the mode is at least as good as the truth
@@ -142,7 +145,8 @@ def test_climb_reaches_the_mode_and_laplace_is_positive_definite(problem):
     assert np.isfinite(value) and g.shape == (coords.size,)
 
 
-def test_climb_with_held_coordinates_moves_only_the_free_ones(problem):
+@pytest.mark.parametrize("exact_gradient", [False, True], ids=["subset", "exact-gradient"])
+def test_climb_with_held_coordinates_moves_only_the_free_ones(problem, exact_gradient):
     """The appearance-only climb: geometry held exactly, the appearance's conditional mode reached."""
     from mcmcfit.fitting.gaussian_stage import appearance_coordinates
 
@@ -152,7 +156,8 @@ def test_climb_with_held_coordinates_moves_only_the_free_ones(problem):
     free = appearance_coordinates(coords)
     assert free.any() and not free.all()
     res = find_mode(face, cur, coords, start, rng=np.random.default_rng(0), max_steps=15,
-                    free=free)
+                    free=free,
+                    gradient=coordinate_gradient(cur, coords) if exact_gradient else None)
     u0, u1 = coords.u_of(start), coords.u_of(res.params)
     np.testing.assert_array_equal(u1[~free], u0[~free])
     assert res.iterations >= 1 and res.log_density > res.trace[0]
