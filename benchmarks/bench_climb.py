@@ -3,7 +3,7 @@
 Every fit of the Gaussian sampler climbs to its posterior's mode with
 Levenberg-Marquardt steps (:func:`mcmcfit.fitting.mode.find_mode`). Each step
 needs a gradient and a precision. The old climb formed both from the pixel
-Jacobian of a random 4,000-pixel subset of the region on every step (~0.3 s at
+Jacobian of a random 4,000-pixel subset of the region on every step (0.17-0.3 s at
 250^2: one forward-mode pass per parameter), so its gradient carried the
 subset's noise. The new climb takes the exact gradient over every region pixel
 (one reverse pass, ~30 ms, the HMC move's) on every step and evaluates the

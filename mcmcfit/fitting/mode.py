@@ -8,7 +8,7 @@ precision ``P`` of :class:`~mcmcfit.targets.curvature.PosteriorCurvature`, and
 is kept only if the **exact** log density (ray cast, prior, landmarks, in
 ``u``: plus ``log |dx/du|``) rises; otherwise ``lambda`` grows. ``P`` comes
 from the pixel Jacobian of a random part of the region's pixels, counted up
-(~0.3 s at 250^2); given the exact gradient over every region pixel (one
+(0.17-0.3 s a step at 250^2); given the exact gradient over every region pixel (one
 reverse pass, ~30 ms) a climb takes it on every step and re-evaluates ``P``
 only every few steps, so its steps are cheaper and its direction carries no
 subset noise. A handful of steps reach the mode from the landmark fit where
