@@ -1,4 +1,4 @@
-"""The climb to the mode: exact full-region gradients with a kept precision against subset Jacobians.
+"""The climb to the mode: exact gradients with a kept precision against subset Jacobians.
 
 Every fit of the Gaussian sampler climbs to its posterior's mode with
 Levenberg-Marquardt steps (:func:`mcmcfit.fitting.mode.find_mode`). Each step
@@ -50,7 +50,7 @@ def _start(case, template):
 
 
 def climb(post, caster, coords, start, *, steps: int, exact: bool, seed: int):
-    """Run the fit's two climbs (appearance, then all) one way; return (seconds, steps, log density)."""
+    """Run the fit's two climbs (appearance, then all) one way: (seconds, steps, log density)."""
     curvature = PosteriorCurvature(post.face, coords.layout, caster=caster)
     gradient = coordinate_gradient(curvature, coords) if exact else None
     rng = np.random.default_rng(seed)
