@@ -161,10 +161,10 @@ def find_mode(target: FaceTarget, curvature: PosteriorCurvature, coords: Samplin
     lam = 1e-3
     region = curvature.region_pixels
     steps = 0
-    prec, age, failed = None, 0, False
+    prec, age = None, 0
     for _ in range(max_steps):
         g = None if gradient is None else _full_gradient(gradient, params)
-        fresh = g is None or prec is None or age >= refresh or failed
+        fresh = g is None or prec is None or age >= refresh
         if fresh:
             if region.size > step_pixels:
                 pixels = rng.choice(region, step_pixels, replace=False)
@@ -180,7 +180,7 @@ def find_mode(target: FaceTarget, curvature: PosteriorCurvature, coords: Samplin
         if free is not None:
             g, h = g[free], prec[np.ix_(free, free)]
         diag = np.maximum(np.diag(h), 1e-12)
-        moved = False
+        lam_start, moved = lam, False
         for _ in range(12):
             try:
                 step = np.linalg.solve(h + lam * np.diag(diag), g)
@@ -201,10 +201,9 @@ def find_mode(target: FaceTarget, curvature: PosteriorCurvature, coords: Samplin
             lam *= 4.0
         if not moved:
             if not fresh:  # the kept precision may be stale: re-evaluate it first
-                failed, lam = True, max(lam / 4.0 ** 12, 1e-7)
+                lam, age = lam_start, refresh
                 continue
             break
-        failed = False
         age += 1
         gain = v_new - value
         u, params, value = u_new, p_new, v_new
