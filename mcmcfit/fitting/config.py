@@ -110,13 +110,13 @@ class FitConfig:
         Gaussian sampler (with ``image_size``): sample ``d_0 / d`` in place of
         the log distance (:class:`proposals.laplace.coordinates.SamplingCoordinates`):
         the perspective's ridge with the shape and pose is straight in it.
-    metric : {"gauss-newton", "hessian"}
-        Gaussian sampler: the approximation the moves whiten with.
-        ``"gauss-newton"`` (the default) is the Laplace approximation of the
-        climb; ``"hessian"`` widens it where the posterior's Hessian, by
-        central differences of its exact gradient at +-1 sd, is flatter
-        (:mod:`mcmcfit.fitting.curvature_widening`; 2 d gradient evaluations
-        per chain, ~12 s). Off by default: it did not mix better (README).
+    metric : {"gauss-newton", "hessian", "fisher"}
+        Gaussian sampler: the approximation the moves whiten with: the climb's Laplace
+        approximation (``"gauss-newton"``), widened where the Hessian by central differences
+        of the exact gradient is flatter (``"hessian"``, did not mix better, README;
+        :mod:`mcmcfit.fitting.curvature_widening`), or (the default, ``"fisher"``) at 60 % of
+        the warm-up where 150 draws per chain and the gradients at them say it is wider
+        (:func:`proposals.laplace.widening.widened_by_fisher`).
     recentre : bool
         Gaussian sampler: after each warm-up window, a chain whose best draw
         beats its mode by more than 10 nats climbs again from that draw, and the
@@ -299,7 +299,7 @@ class FitConfig:
     hmc_triangles: str = "cast"
     image_size: bool = True
     inverse_distance: bool = False
-    metric: str = "gauss-newton"
+    metric: str = "fisher"
     recentre: bool = True
     widen: bool = False
     widen_at: int = 0

@@ -49,7 +49,7 @@ def check_config(cfg) -> None:
                "background": ("smoothed", "histogram"),
                "init_pose": ("lsq", "similarity"), "init_light": ("solve", "frontal"),
                "noise": ("estimated", "fixed"), "sampler": ("gaussian", "reference", "random-walk"),
-               "hmc_triangles": ("cast", "mode"), "metric": ("gauss-newton", "hessian"),
+               "hmc_triangles": ("cast", "mode"), "metric": ("gauss-newton", "hessian", "fisher"),
                "effects": ("auto", "sh", "sh+directional"),
                "foreground": ("gaussian", "robust")}
     for name, allowed in choices.items():

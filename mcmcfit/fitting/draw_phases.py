@@ -17,7 +17,7 @@ import numpy as np
 from mcmcfit.fitting.mode import ADOPT_GAP, POLISH_STEPS
 from mcmcfit.sampling.chain import ChainRecord, ChainRecorder
 from mcmcfit.sampling.kernel import init, run
-from proposals.laplace.widening import widened_by_draws
+from proposals.laplace.widening import widened_by_draws, widened_by_fisher
 
 __all__ = ["DrawPhases"]
 
@@ -28,8 +28,8 @@ class DrawPhases:
     Reads the session's ``problem``, ``cfg``, ``rng``, ``state``, ``proposal``,
     ``chain_target`` (the target its chain runs on), ``coords``, ``mode``, ``approx``,
     ``_warm``, ``_kept`` (recorders) and ``_t_warm``, ``_t_kept``, and calls its
-    ``_check``, ``_build_proposal``, ``_climb``, ``_climb_posterior`` and
-    ``_approximate``: shared by a single fit's
+    ``_check``, ``_build_proposal``, ``_climb``, ``_climb_posterior``,
+    ``_coordinate_gradient`` and ``_approximate``: shared by a single fit's
     (:class:`~mcmcfit.fitting.chain_session.ChainSession`) and a joint fit's
     (:class:`~mcmcfit.fitting.joint_session.JointChainSession`) sessions.
     """
@@ -130,10 +130,33 @@ class DrawPhases:
         self.state = init(self.state.params, target, image=True)
         return out
 
-    def widen(self, draws: list[np.ndarray], effective_fraction: float = 0.25) -> dict:
+    def warmup_gradients(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Return the last ``n`` warm-up draws and the posterior's gradient at each, in coordinates.
+
+        One exact gradient per draw (a ray cast and a reverse pass, ~30 ms at
+        250^2), for :meth:`widen` with ``gradients``. Returns two (n, d) arrays.
+        """
+        rec = self._warm.record() if self._warm is not None else None
+        if rec is None or self.coords is None or self.approx is None or n < 1:
+            size = 0 if self.coords is None else self.coords.size
+            return np.zeros((0, size)), np.zeros((0, size))
+        grad = self._coordinate_gradient()
+        layout, base = self.problem.layout, self.mode.params
+        draws, grads = [], []
+        for v in rec.samples[-n:]:
+            params = layout.from_vector(v, base)
+            draws.append(self.coords.u_of(params))
+            grads.append(np.asarray(grad(params)[1], np.float64))
+        return np.array(draws), np.array(grads)
+
+    def widen(self, draws: list[np.ndarray], effective_fraction: float = 0.25,
+              gradients: list[np.ndarray] | None = None) -> dict:
         """Widen the Gaussian approximation where warm-up ``draws`` (one array per chain) are wider.
 
-        See :func:`proposals.laplace.widening.widened_by_draws`; the moves are
+        See :func:`proposals.laplace.widening.widened_by_draws`, or with
+        ``gradients`` (the log density's gradient at each draw, as
+        :meth:`warmup_gradients` returns them)
+        :func:`~proposals.laplace.widening.widened_by_fisher`; the moves are
         rebuilt on the widened approximation (their step multipliers are
         adapted again by the rest of the warm-up).
 
@@ -141,12 +164,17 @@ class DrawPhases:
         -------
         dict
             ``ratios`` (variance ratios of the widened directions), ``largest``
-            (largest whitened eigenvalue), ``edge`` (the noise edge), ``n_draws``.
+            (largest whitened eigenvalue), ``edge`` (the noise edge, or the
+            Fisher estimate's threshold), ``n_draws``.
         """
         if self.approx is None:
             return {"ratios": [], "largest": None, "edge": None, "n_draws": 0}
-        found = widened_by_draws(self.approx, [np.asarray(d) for d in draws],
-                                 effective_fraction=effective_fraction)
+        if gradients is None:
+            found = widened_by_draws(self.approx, [np.asarray(d) for d in draws],
+                                     effective_fraction=effective_fraction)
+        else:
+            found = widened_by_fisher(self.approx, [np.asarray(d) for d in draws],
+                                      [np.asarray(g) for g in gradients])
         self.approx = found.approx
         self._build_proposal()
         return {"ratios": [float(r) for r in found.ratios], "largest": found.largest,

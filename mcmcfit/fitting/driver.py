@@ -60,14 +60,18 @@ def drive_chains(pool, cfg: FitConfig, layout, t_start: float, progress: Progres
     if cfg.sampler != "random-walk":
         noise = _prepare_gaussian(pool, cfg, stopping)
         if warm:
-            first = (warm * 3) // 5 if cfg.widen and cfg.adapt else warm
+            fisher = cfg.metric == "fisher" and cfg.sampler == "gaussian"
+            first = (warm * 3) // 5 if (cfg.widen or fisher) and cfg.adapt else warm
             rest = warm - first
             ran = _warm_up_recentring(pool, cfg, first, stopping)
             warm, total = ran + rest, total + ran - first
             if rest:
                 _report(progress, "image", k, ran, total)
-                draws = pool.call("warmup_draws", 2.0 / 3.0)
-                stopping["widening"] = pool.call("widen", draws)
+                if fisher:
+                    stopping["widening"] = _widen_by_fisher(pool, ran)
+                else:
+                    draws = pool.call("warmup_draws", 2.0 / 3.0)
+                    stopping["widening"] = pool.call("widen", draws)
                 pool.call("warmup", rest, window=cfg.adapt_window, adapt=cfg.adapt)
             _report(progress, "image", k, warm, total)
     else:
@@ -150,6 +154,29 @@ def _warm_up_recentring(pool, cfg: FitConfig, n_steps: int, stopping: dict) -> i
                 target = done + window
     stopping["recentring"] = checks
     return done
+
+
+#: Warm-up draws per chain whose gradients :func:`_widen_by_fisher` evaluates (~30 ms each).
+FISHER_DRAWS = 150
+
+
+def _widen_by_fisher(pool, ran: int) -> list[dict]:
+    """Widen every chain's approximation from all chains' warm-up draws and gradients at them.
+
+    Each chain evaluates the exact gradient at its last :data:`FISHER_DRAWS`
+    warm-up draws (at most half of ``ran``, the warm-up steps so far); every chain then
+    widens with the same pooled estimate
+    (:func:`proposals.laplace.widening.widened_by_fisher`). Returns each chain's record
+    (as :meth:`~mcmcfit.fitting.draw_phases.DrawPhases.widen`, plus ``seconds``).
+    """
+    t0 = time.perf_counter()
+    found = pool.call("warmup_gradients", max(2, min(FISHER_DRAWS, ran // 2)))
+    draws, grads = [f[0] for f in found], [f[1] for f in found]
+    if min(d.shape[0] for d in draws) < 2:  # a warm-up too short (or thinned) to estimate from
+        out = [{"ratios": [], "largest": None, "edge": None, "n_draws": 0}] * len(draws)
+    else:
+        out = pool.call("widen", draws, 0.25, grads)
+    return [{**o, "seconds": time.perf_counter() - t0} for o in out]
 
 
 #: Effective draws per kept draw assumed when widening from the kept draws: the slow

@@ -141,14 +141,7 @@ class JointChainSession(DrawPhases):
                                             sigma=self.posts[i].pixel_sigma)))
                   for i in range(n)]
         albedo = SharedAlbedoConditional(self.albedo_data, [p.pixel_sigma for p in self.posts])
-        gradient = None
-        if cfg.hmc_weight > 0:
-            if self._hmc_gradient is None:  # one per posterior and coordinates (Jacobians are big)
-                curvature = self._curvature()
-                triangles = (curvature.region_triangles(self.mode.params)
-                             if cfg.hmc_triangles == "mode" else None)
-                self._hmc_gradient = joint_coordinate_gradient(curvature, self.coords, triangles)
-            gradient = self._hmc_gradient
+        gradient = self._coordinate_gradient() if cfg.hmc_weight > 0 else None
         self.proposal = gaussian_image_proposal(
             self.coords, self.approx, scales=self.scales, pcn_weight=cfg.pcn_weight,
             block_weight=cfg.block_weight, gradient=gradient, hmc_weight=cfg.hmc_weight,
@@ -157,6 +150,15 @@ class JointChainSession(DrawPhases):
         self.family = family_of(self.proposal)
 
     # -- landmark stage and start ------------------------------------------------------
+    def _coordinate_gradient(self):
+        """Return the joint posterior's gradient in the coordinates (built once per posterior)."""
+        if self._hmc_gradient is None:  # one per posterior and coordinates (Jacobians are big)
+            curvature = self._curvature()
+            triangles = (curvature.region_triangles(self.mode.params)
+                         if self.cfg.hmc_triangles == "mode" else None)
+            self._hmc_gradient = joint_coordinate_gradient(curvature, self.coords, triangles)
+        return self._hmc_gradient
+
     def landmarks(self) -> float:
         """Run every image's landmark stage; the joint start takes their poses and mean shape."""
         cfg = self.cfg

@@ -42,8 +42,8 @@ import numpy as np
 from albedo_model.errors import InputError
 from proposals.laplace.moves import GaussianApproximation
 
-__all__ = ["CURVATURE_MAX_RATIO", "MAX_DIRECTIONS", "MAX_RATIO", "Widening", "widened_by_curvature",
-           "widened_by_draws"]
+__all__ = ["CURVATURE_MAX_RATIO", "FISHER_SHRINKAGE", "FISHER_THRESHOLD", "MAX_DIRECTIONS",
+           "MAX_RATIO", "Widening", "widened_by_curvature", "widened_by_draws", "widened_by_fisher"]
 
 #: At most this many directions are widened.
 MAX_DIRECTIONS = 4
@@ -54,6 +54,12 @@ MARGIN = 1.2
 #: :func:`widened_by_curvature` caps a direction's variance ratio here (flat or negative
 #: curvature: the prior, not the mode's neighbourhood, bounds the posterior there).
 CURVATURE_MAX_RATIO = 25.0
+#: :func:`widened_by_fisher` shrinks both whitened covariances towards the identity with
+#: this many pseudo-draws (at ~300 draws in ~140 dimensions the top direction of the
+#: estimate overlapped the converged posterior's 0.83-0.84 with 10 or 50, 0.04 with none).
+FISHER_SHRINKAGE = 10.0
+#: :func:`widened_by_fisher` widens a direction whose estimated variance ratio exceeds this.
+FISHER_THRESHOLD = 2.0
 
 
 class Widening(NamedTuple):
@@ -185,3 +191,83 @@ def widened_by_curvature(approx: GaussianApproximation, whitened_precision: np.n
     ratios = 1.0 / np.maximum(values[keep], 1.0 / max_ratio)
     v = vectors[:, keep]
     return Widening(_widened(approx, ratios, v), ratios, v, float(ratios.max()), 1.0, 0)
+
+
+def widened_by_fisher(approx: GaussianApproximation, draws: list[np.ndarray],
+                      gradients: list[np.ndarray], *, shrinkage: float = FISHER_SHRINKAGE,
+                      threshold: float = FISHER_THRESHOLD,
+                      max_directions: int = MAX_DIRECTIONS) -> Widening:
+    """Return ``approx`` widened where draws *and* their log-density gradients say it is too narrow.
+
+    For a Gaussian target ``N(mu, S)`` the draws' covariance is ``S`` and the
+    gradients' covariance is ``S^-1`` (the Fisher identity), so each estimate
+    alone is noisy but the covariance that best agrees with both -- the one
+    minimising the Fisher divergence over affine preconditioners, ``S`` with
+    ``S G S = X``, i.e. the matrix geometric mean of ``X`` and ``G^-1``
+    (Seyboldt, Carlson & Carpenter 2025, "Preconditioning Hamiltonian Monte
+    Carlo by minimizing Fisher divergence") -- finds a wide direction from a few
+    hundred correlated warm-up draws where the draws alone do not. Both
+    covariances are taken in the approximation's whitened coordinates and
+    shrunk towards the identity with ``shrinkage`` pseudo-draws; the
+    eigen-directions of the estimate whose variance ratio exceeds
+    ``threshold`` (at most ``max_directions``, capped at :data:`MAX_RATIO`) are
+    widened to it, all others keep the approximation.
+
+    Parameters
+    ----------
+    approx : GaussianApproximation
+        ``N(m, L L^T)`` in the sampling coordinates.
+    draws, gradients : list of (n_i, d) arrays
+        One array per chain: warm-up draws in the sampling coordinates and the
+        gradient of the log density (in the same coordinates) at each of them.
+    shrinkage : float >= 0
+    threshold : float > 1
+    max_directions : int
+
+    Returns
+    -------
+    Widening
+        ``largest`` is the estimate's largest variance ratio, ``edge`` the threshold.
+
+    Raises
+    ------
+    InputError
+        Mismatched, non-finite or too few (< 2 per chain) draws or gradients.
+    """
+    d = approx.size
+    xs = [np.asarray(x, np.float64) for x in draws]
+    gs = [np.asarray(g, np.float64) for g in gradients]
+    if len(xs) != len(gs) or not xs:
+        raise InputError(f"Fisher widening needs one gradient array per draw array; got "
+                         f"{len(xs)} and {len(gs)}")
+    for x, g in zip(xs, gs):
+        if (x.ndim != 2 or x.shape != g.shape or x.shape[1] != d or x.shape[0] < 2
+                or not (np.all(np.isfinite(x)) and np.all(np.isfinite(g)))):
+            raise InputError(f"Fisher widening needs finite (n >= 2, {d}) draws and gradients "
+                             f"per chain; got {x.shape} and {g.shape}")
+    if not (math.isfinite(threshold) and threshold > 1.0) or not shrinkage >= 0.0:
+        raise InputError(f"Fisher widening needs threshold > 1 and shrinkage >= 0; got "
+                         f"{threshold!r} and {shrinkage!r}")
+    lc = approx.chol_cov
+    z = np.concatenate([np.linalg.solve(lc, (x - x.mean(axis=0)).T).T for x in xs])
+    h = np.concatenate([(g - g.mean(axis=0)) @ lc for g in gs])  # L^T g per row
+    n = z.shape[0] - len(xs)
+    eye = np.eye(d)
+    cx = (z.T @ z + shrinkage * eye) / (n + shrinkage)
+    cg = (h.T @ h + shrinkage * eye) / (n + shrinkage)
+    cg_half = _spd_power(cg, 0.5)
+    cg_inv_half = _spd_power(cg, -0.5)
+    estimate = cg_inv_half @ _spd_power(cg_half @ cx @ cg_half, 0.5) @ cg_inv_half
+    values, vectors = np.linalg.eigh(0.5 * (estimate + estimate.T))
+    keep = [i for i in range(d - 1, -1, -1) if values[i] > threshold][:max_directions]
+    if not keep:
+        return Widening(approx, np.zeros(0), np.zeros((d, 0)), float(values[-1]), threshold, n)
+    ratios = np.minimum(values[keep], MAX_RATIO)
+    v = vectors[:, keep]
+    return Widening(_widened(approx, ratios, v), ratios, v, float(values[-1]), threshold, n)
+
+
+def _spd_power(a: np.ndarray, power: float) -> np.ndarray:
+    """Return ``a ** power`` of a symmetric positive definite matrix (by its eigen-decomposition)."""
+    values, vectors = np.linalg.eigh(0.5 * (a + a.T))
+    return (vectors * np.maximum(values, 1e-300) ** power) @ vectors.T

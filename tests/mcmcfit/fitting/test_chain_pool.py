@@ -94,6 +94,36 @@ def test_widening_splits_the_warmup_and_is_recorded(case):
         assert c.warmup.steps == 100 and c.stage2.steps == 50
 
 
+def test_fisher_metric_widens_from_warmup_draws_and_their_gradients(case, monkeypatch):
+    """``metric="fisher"``: every chain evaluates gradients at its last warm-up draws; all widen."""
+    from mcmcfit.fitting import draw_phases
+
+    model, image, clicks = case
+    seen = []
+
+    def spy(approx, draws, gradients, **kw):
+        seen.append(([d.shape for d in draws], [g.shape for g in gradients]))
+        for d, g in zip(draws, gradients):
+            assert np.all(np.isfinite(d)) and np.all(np.isfinite(g)) and np.any(g)
+        return real(approx, draws, gradients, **kw)
+
+    real = draw_phases.widened_by_fisher
+    monkeypatch.setattr(draw_phases, "widened_by_fisher", spy)
+    cfg = _cfg(parallel=False, metric="fisher", steps=50, warmup_steps=100, check_every=50,
+               landmark_steps=100)
+    res = fit(image, clicks, model, config=cfg, seed=5)
+    found = res.stopping["widening"]
+    assert len(found) == 2 and len(seen) == 2  # each chain widens with all chains' draws
+    d = seen[0][0][0][1]
+    # half the 60 warm-up steps run, of which every 5th is recorded (thin=5)
+    assert seen[0][0] == seen[0][1] == [(12, d), (12, d)]
+    for f in found:
+        assert f["n_draws"] == 22 and f["edge"] > 1.0 and f["seconds"] > 0
+        assert all(1.0 < r <= 9.0 for r in f["ratios"])
+    for c in res.chains:
+        assert c.warmup.steps == 100 and c.stage2.steps == 50
+
+
 @pytest.mark.parametrize("widens", [False, True])
 def test_widening_from_kept_draws_restarts_them_only_when_it_widens(case, monkeypatch, widens):
     """``widen_at``: widened kept draws become warm-up and the kept chain starts again."""
