@@ -4,8 +4,8 @@
 (:class:`~mcmcfit.fitting.chain_session.ChainSession`) and a joint fit's
 (:class:`~mcmcfit.fitting.joint_session.JointChainSession`).
 
-This module imports :mod:`mcmcfit.fitting.mode`, :mod:`mcmcfit.sampling` (chain, kernel)
-and :mod:`proposals.laplace.widening`.
+This module imports :mod:`albedo_model.errors`, :mod:`mcmcfit.fitting.mode`,
+:mod:`mcmcfit.sampling` (chain, kernel) and :mod:`proposals.laplace.widening`.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from albedo_model.errors import InputError
 from mcmcfit.fitting.mode import ADOPT_GAP, POLISH_STEPS
 from mcmcfit.sampling.chain import ChainRecord, ChainRecorder
 from mcmcfit.sampling.kernel import init, run
@@ -134,7 +135,8 @@ class DrawPhases:
         """Return the last ``n`` warm-up draws and the posterior's gradient at each, in coordinates.
 
         One exact gradient per draw (a ray cast and a reverse pass, ~30 ms at
-        250^2), for :meth:`widen` with ``gradients``. Returns two (n, d) arrays.
+        250^2), for :meth:`widen` with ``gradients``. Returns two (k, d) arrays,
+        k <= n: a draw whose gradient fails or is not finite is left out.
         """
         rec = self._warm.record() if self._warm is not None else None
         if rec is None or self.coords is None or self.approx is None or n < 1:
@@ -145,9 +147,15 @@ class DrawPhases:
         draws, grads = [], []
         for v in rec.samples[-n:]:
             params = layout.from_vector(v, base)
-            draws.append(self.coords.u_of(params))
-            grads.append(np.asarray(grad(params)[1], np.float64))
-        return np.array(draws), np.array(grads)
+            try:
+                g = np.asarray(grad(params)[1], np.float64)
+            except (InputError, ValueError, ArithmeticError):
+                continue
+            if np.all(np.isfinite(g)):
+                draws.append(self.coords.u_of(params))
+                grads.append(g)
+        size = self.coords.size
+        return np.array(draws).reshape(-1, size), np.array(grads).reshape(-1, size)
 
     def widen(self, draws: list[np.ndarray], effective_fraction: float = 0.25,
               gradients: list[np.ndarray] | None = None) -> dict:

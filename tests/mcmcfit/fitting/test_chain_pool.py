@@ -124,6 +124,36 @@ def test_fisher_metric_widens_from_warmup_draws_and_their_gradients(case, monkey
         assert c.warmup.steps == 100 and c.stage2.steps == 50
 
 
+def test_fisher_metric_survives_gradients_that_fail(case, monkeypatch):
+    """A draw whose gradient raises or is not finite is left out; with too few the fit goes on."""
+    from mcmcfit.fitting.chain_session import ChainSession
+
+    model, image, clicks = case
+    real = ChainSession._coordinate_gradient
+    calls = {"n": 0}
+
+    def failing(self):
+        grad = real(self)
+
+        def wrapped(params):
+            calls["n"] += 1
+            if calls["n"] % 2:
+                raise ValueError("outside the domain")
+            value, g = grad(params)
+            return value, np.full_like(np.asarray(g, float), np.nan)
+        return wrapped  # only the widening asks for it (no HMC move below)
+
+    monkeypatch.setattr(ChainSession, "_coordinate_gradient", failing)
+    cfg = _cfg(parallel=False, metric="fisher", steps=50, warmup_steps=100, check_every=50,
+               landmark_steps=100, hmc_weight=0.0)
+    res = fit(image, clicks, model, config=cfg, seed=5)
+    assert calls["n"] > 0
+    assert [f["n_draws"] for f in res.stopping["widening"]] == [0, 0]
+    assert all(f["ratios"] == [] for f in res.stopping["widening"])
+    for c in res.chains:
+        assert c.warmup.steps == 100 and c.stage2.steps == 50
+
+
 @pytest.mark.parametrize("widens", [False, True])
 def test_widening_from_kept_draws_restarts_them_only_when_it_widens(case, monkeypatch, widens):
     """``widen_at``: widened kept draws become warm-up and the kept chain starts again."""
