@@ -130,9 +130,20 @@ def widened_by_draws(approx: GaussianApproximation, draws: list[np.ndarray] | np
     values, vectors = np.linalg.eigh(0.5 * (cov + cov.T))
     n_eff = max(1.0, effective_fraction * n)
     edge = (1.0 + math.sqrt(d / n_eff)) ** 2
-    keep = [i for i in range(d - 1, -1, -1) if values[i] > MARGIN * edge][:max_directions]
+    return _widened_above(approx, values, vectors, MARGIN * edge, max_directions, edge, n)
+
+
+def _widened_above(approx: GaussianApproximation, values: np.ndarray, vectors: np.ndarray,
+                   cut: float, max_directions: int, edge: float, n: int) -> Widening:
+    """Return ``approx`` widened where an eigenvalue of a whitened covariance exceeds ``cut``.
+
+    ``values`` ascending with their ``vectors`` (as ``eigh`` returns them); at most
+    ``max_directions`` directions, each ratio capped at :data:`MAX_RATIO`.
+    """
+    keep = [i for i in range(values.size - 1, -1, -1) if values[i] > cut][:max_directions]
     if not keep:
-        return Widening(approx, np.zeros(0), np.zeros((d, 0)), float(values[-1]), edge, n)
+        return Widening(approx, np.zeros(0), np.zeros((values.size, 0)), float(values[-1]),
+                        edge, n)
     ratios = np.minimum(values[keep], MAX_RATIO)
     v = vectors[:, keep]
     return Widening(_widened(approx, ratios, v), ratios, v, float(values[-1]), edge, n)
@@ -259,12 +270,7 @@ def widened_by_fisher(approx: GaussianApproximation, draws: list[np.ndarray],
     cg_inv_half = _spd_power(cg, -0.5)
     estimate = cg_inv_half @ _spd_power(cg_half @ cx @ cg_half, 0.5) @ cg_inv_half
     values, vectors = np.linalg.eigh(0.5 * (estimate + estimate.T))
-    keep = [i for i in range(d - 1, -1, -1) if values[i] > threshold][:max_directions]
-    if not keep:
-        return Widening(approx, np.zeros(0), np.zeros((d, 0)), float(values[-1]), threshold, n)
-    ratios = np.minimum(values[keep], MAX_RATIO)
-    v = vectors[:, keep]
-    return Widening(_widened(approx, ratios, v), ratios, v, float(values[-1]), threshold, n)
+    return _widened_above(approx, values, vectors, threshold, max_directions, threshold, n)
 
 
 def _spd_power(a: np.ndarray, power: float) -> np.ndarray:
